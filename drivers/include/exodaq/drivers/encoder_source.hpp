@@ -1,0 +1,53 @@
+#pragma once
+// The seam every encoder backend sits behind (sim, socketcan, replay). The
+// daemon's loop talks to this interface only, so tests inject fakes.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "exodaq/drivers/encoder_sample.hpp"
+
+namespace exodaq::drivers {
+
+struct CycleTime {
+  std::int64_t deadline_mono_ns = 0;  // the cycle's scheduled start
+  std::int64_t now_mono_ns = 0;       // when the loop woke
+  std::int64_t period_ns = 1'000'000;
+  std::int64_t cycle = 0;             // cycle number since start
+};
+
+enum class ReadStatus : std::uint8_t {
+  kSample,       // out holds this cycle's sample (possibly flagged)
+  kNoSample,     // nothing this cycle; out.present == false, counts held
+  kEndOfStream,  // replay finished
+};
+
+class EncoderSource {
+ public:
+  virtual ~EncoderSource() = default;
+  EncoderSource() = default;
+  EncoderSource(const EncoderSource&) = delete;
+  EncoderSource& operator=(const EncoderSource&) = delete;
+
+  virtual std::string_view name() const noexcept = 0;
+
+  // Opens devices and allocates; called before the loop starts. Throws on error.
+  virtual void start() = 0;
+
+  // Called once per cycle on the loop thread, after the wake-up. Must not
+  // allocate, block or log. Fills `out` for this cycle.
+  virtual ReadStatus read(const CycleTime& time, EncoderSample& out) noexcept = 0;
+
+  // For replay: the mono_ns at which the next sample is due, so the loop can be
+  // paced by the recording. Live sources return -1 (paced by the loop clock).
+  virtual std::int64_t next_sample_mono_ns() const noexcept { return -1; }
+
+  virtual SourceStats stats() const noexcept = 0;
+
+  // Live sources with a bus: whether the daemon should send SYNC this cycle is
+  // the backend's business; write() is for that (sim ignores it).
+  virtual void stop() noexcept {}
+};
+
+}  // namespace exodaq::drivers
