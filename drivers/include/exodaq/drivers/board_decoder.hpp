@@ -1,0 +1,165 @@
+#pragma once
+// Stateful assembly of protocol v1 frames into one EncoderSample per board
+// cycle. Shared by the sim backend, the SocketCAN backend and candump replay:
+// whoever has frames feeds them in with on_frame() and takes completed cycles
+// out with poll_sample(). Allocation-free; not thread-safe (one owner thread).
+//
+// Cycle assembly
+//   COUNTS_A and COUNTS_B with the same seq form one cycle. The cycle is
+//   complete when both halves arrived and is then queued for poll_sample().
+//   A half-assembled cycle is closed as kPartial when a count frame of a newer
+//   seq arrives, or when the owner calls flush() at its deadline. The missing
+//   half's counts repeat the last known counts; channel_fresh tells which
+//   channels arrived (0x07 = A only, 0x38 = B only).
+//
+// Time stamps
+//   A sample's mono_ns/wall_ns are the receive stamps of the count frame that
+//   arrived last in its cycle (the frame that completed it; for a partial
+//   cycle, the one half that arrived): the moment the whole sample was there.
+//
+// Sequence handling (uint8 seq, compared by seq_delta in [−128, 127])
+//   newer by 1      normal
+//   newer by d > 1  d − 1 cycles lost: seq_gaps += 1, lost_cycles += d − 1,
+//                   kSeqGap on that sample
+//   same as a cycle already taken (or the same half twice): dropped,
+//                   duplicates += 1, kDuplicate on the next delivered sample;
+//                   a half that had not arrived before its cycle was closed
+//                   counts as out of order instead
+//   older           dropped, out_of_order += 1, kOutOfOrder on the next sample
+//   Resynchronisation: after `resync_after_ns` without any count frame, or
+//   after `resync_after_rejects` consecutive dropped count frames (board
+//   restarted), the next count frame is taken as new whatever its seq
+//   (counted as one seq gap).
+//
+// Event flags (kSeqGap, kDuplicate, kOutOfOrder, kBusError from an error
+// frame) go on the next sample closed after the event — a cycle completed or
+// flushed, or make_missing() if that comes first. Level flags, added when a
+// sample is delivered: kBoardError while the last heartbeat had error bits;
+// kBusError while the bus state is kOff or kDown.
+#include <array>
+#include <cstdint>
+
+#include "exodaq/drivers/can_codec.hpp"
+#include "exodaq/drivers/encoder_sample.hpp"
+
+namespace exodaq::drivers {
+
+struct BoardDecoderConfig {
+  can::ProtocolIds ids{};
+  // No count frame for this long: accept the next seq as new (a gap).
+  std::int64_t resync_after_ns = 100'000'000;
+  // This many consecutive count frames dropped as duplicate/out-of-order:
+  // assume the board restarted and accept the next one.
+  int resync_after_rejects = 8;
+};
+
+// Everything BoardDecoder counts; `source` is what the status channel shows.
+struct BoardDecoderStats {
+  SourceStats source{};
+  std::int64_t samples = 0;          // samples delivered with present == true
+  std::int64_t partial_samples = 0;  // of which kPartial
+  std::int64_t lost_cycles = 0;      // seq values skipped in total
+  std::int64_t resyncs = 0;
+  std::int64_t sync_frames = 0;
+  std::int64_t index_frames = 0;
+  std::int64_t heartbeats = 0;
+  std::int64_t queue_overflows = 0;        // completed samples dropped, consumer too slow
+  std::array<std::int64_t, 6> rejected{};  // by can::Reject value (index 0 unused)
+  std::int64_t last_heartbeat_mono_ns = 0;
+  std::int64_t last_count_frame_mono_ns = 0;
+  std::uint8_t board_state = 0;
+  std::uint8_t protocol_version = 0;
+};
+
+class BoardDecoder {
+ public:
+  static constexpr int kQueueCapacity = 8;
+
+  explicit BoardDecoder(const BoardDecoderConfig& config = {}) noexcept;
+
+  // Forgets every cycle and counter (start of a stream).
+  void reset() noexcept;
+
+  // Feeds one received frame. Returns what the codec made of it (for tests and
+  // for backends that act on SYNC/errors); the decoder has already counted it.
+  can::FrameKind on_frame(const can::CanFrame& frame) noexcept;
+
+  // Takes the oldest completed cycle. false: none complete.
+  bool poll_sample(EncoderSample& out) noexcept;
+
+  // Number of completed cycles waiting for poll_sample().
+  int queued() const noexcept { return queue_size_; }
+  // A cycle with only one half so far (flush() would produce a sample).
+  bool has_partial() const noexcept { return pending_.active; }
+
+  // At the owner's deadline: closes a half-assembled cycle as kPartial and
+  // delivers it (true), or returns false when none is pending. Call after
+  // poll_sample() returned false.
+  bool flush(EncoderSample& out) noexcept;
+
+  // Nothing for this cycle: fills `out` with the last counts held,
+  // present = false, channel_fresh = 0, kMissing (+ pending event and level
+  // flags), the given stamps (the backend's cycle time), and counts one
+  // missing sample.
+  void make_missing(EncoderSample& out, std::int64_t mono_ns, std::int64_t wall_ns) noexcept;
+
+  // Backend-side conditions that do not come as frames.
+  void set_bus_state(BusState state) noexcept;  // e.g. kDown on ENETDOWN
+  void add_rx_overflows(std::int64_t dropped) noexcept;
+
+  const BoardDecoderStats& detail() const noexcept { return stats_; }
+  SourceStats stats() const noexcept { return stats_.source; }
+  const BoardDecoderConfig& config() const noexcept { return config_; }
+
+ private:
+  struct Pending {
+    bool active = false;
+    std::uint8_t seq = 0;
+    std::uint32_t fresh = 0;  // channel bits received
+    EncoderSample sample{};
+  };
+
+  void on_counts(const can::CanFrame& frame, const can::CountsPayload& counts,
+                 bool first_half) noexcept;
+  void on_index(const can::IndexPayload& index) noexcept;
+  void on_heartbeat(const can::CanFrame& frame, const can::HeartbeatPayload& hb) noexcept;
+  void on_error(const can::ErrorPayload& err) noexcept;
+  bool needs_resync(const can::CanFrame& frame) const noexcept;
+  void open_pending(std::uint8_t seq, int lost, bool resynced) noexcept;
+  void close_pending() noexcept;  // queue the pending cycle (complete or partial)
+  void drop_old(std::uint8_t seq, std::uint32_t half) noexcept;
+  void merge_stashed_index(EncoderSample& s) noexcept;
+  std::uint32_t level_flags() const noexcept;
+  void finish(EncoderSample& out) noexcept;  // level flags, board state
+
+  BoardDecoderConfig config_;
+  BoardDecoderStats stats_{};
+  Pending pending_{};
+
+  std::array<EncoderSample, kQueueCapacity> queue_{};
+  int queue_head_ = 0;
+  int queue_size_ = 0;
+
+  // The last cycle closed, for sequence checks.
+  bool closed_valid_ = false;
+  std::uint8_t closed_seq_ = 0;
+  std::uint32_t closed_fresh_ = 0;  // channels it had when closed
+  int consecutive_rejects_ = 0;
+
+  // Last known values, held into partial and missing samples.
+  EncoderSample held_{};
+
+  // INDEX frames waiting for the sample of their cycle (or the next one).
+  struct StashedIndex {
+    bool valid = false;
+    std::uint8_t seq = 0;
+    std::uint16_t count16 = 0;
+  };
+  std::array<StashedIndex, kChannelCount> index_stash_{};
+
+  std::uint32_t event_flags_ = 0;
+  std::uint32_t board_errors_ = 0;  // errors | channel bits << 8
+  std::uint32_t board_state_ = 0;
+};
+
+}  // namespace exodaq::drivers
