@@ -29,5 +29,9 @@ struct CommandRegistrar {
 
 }  // namespace exodaq::tools
 
-#define EXODAQ_REGISTER_COMMAND(ident, ...) \
-  static const ::exodaq::tools::CommandRegistrar exodaq_command_##ident{::exodaq::tools::Command{__VA_ARGS__}}
+#define EXODAQ_REGISTER_COMMAND(ident, ...)                               \
+  static const ::exodaq::tools::CommandRegistrar exodaq_command_##ident { \
+    ::exodaq::tools::Command {                                            \
+      __VA_ARGS__                                                         \
+    }                                                                     \
+  }

@@ -17,8 +17,8 @@ std::vector<Command>& command_registry() {
 int main(int argc, char** argv) {
   using exodaq::tools::command_registry;
   CLI::App app{"exodaq: tools for the exoskeleton data-acquisition service"};
-  app.set_version_flag("--version", std::string("exodaq ") + exodaq::kVersion + " (" +
-                                        exodaq::kGitDescribe + ")");
+  app.set_version_flag(
+      "--version", std::string("exodaq ") + exodaq::kVersion + " (" + exodaq::kGitDescribe + ")");
   app.require_subcommand(1);
   auto& commands = command_registry();
   std::sort(commands.begin(), commands.end(),

@@ -17,11 +17,16 @@ std::string format(const std::string& file, int line, const std::string& what) {
 
 const char* kind_name(const YAML::Node& n) {
   switch (n.Type()) {
-    case YAML::NodeType::Null: return "nothing";
-    case YAML::NodeType::Scalar: return "a scalar";
-    case YAML::NodeType::Sequence: return "a list";
-    case YAML::NodeType::Map: return "a mapping";
-    default: return "undefined";
+    case YAML::NodeType::Null:
+      return "nothing";
+    case YAML::NodeType::Scalar:
+      return "a scalar";
+    case YAML::NodeType::Sequence:
+      return "a list";
+    case YAML::NodeType::Map:
+      return "a mapping";
+    default:
+      return "undefined";
   }
 }
 }  // namespace
@@ -82,7 +87,9 @@ void MapReader::fail_key(const std::string& key, const std::string& what) const 
   fail(node_, what);
 }
 
-bool MapReader::has(const std::string& key) const { return static_cast<bool>(node_[key]); }
+bool MapReader::has(const std::string& key) const {
+  return static_cast<bool>(node_[key]);
+}
 
 YAML::Node MapReader::child(const std::string& key) {
   consumed_.insert(key);
@@ -129,8 +136,7 @@ double MapReader::to_number(const YAML::Node& n, const std::string& what) const 
   const double v = std::strtod(s.c_str(), &end);
   if (s.empty() || end == s.c_str() || *end != '\0') {
     // YAML spellings of infinity / NaN are numbers, but not finite ones.
-    if (s == ".inf" || s == "-.inf" || s == ".nan" || s == ".NaN" || s == ".Inf" ||
-        s == "-.Inf") {
+    if (s == ".inf" || s == "-.inf" || s == ".nan" || s == ".NaN" || s == ".Inf" || s == "-.Inf") {
       fail(n, "'" + what + "' must be a finite number, found '" + s + "'");
     }
     fail(n, "'" + what + "' must be a number, found '" + s + "'");
@@ -161,13 +167,17 @@ std::vector<double> MapReader::to_numbers(const YAML::Node& n, const std::string
   return out;
 }
 
-double MapReader::number(const std::string& key) { return to_number(child(key), key); }
+double MapReader::number(const std::string& key) {
+  return to_number(child(key), key);
+}
 
 double MapReader::number_or(const std::string& key, double fallback) {
   return has(key) ? number(key) : (allow(key), fallback);
 }
 
-std::int64_t MapReader::integer(const std::string& key) { return to_integer(child(key), key); }
+std::int64_t MapReader::integer(const std::string& key) {
+  return to_integer(child(key), key);
+}
 
 std::int64_t MapReader::integer_or(const std::string& key, std::int64_t fallback) {
   return has(key) ? integer(key) : (allow(key), fallback);

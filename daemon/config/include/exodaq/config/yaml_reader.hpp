@@ -47,20 +47,20 @@ class MapReader {
   const YAML::Node& node() const noexcept { return node_; }
   bool has(const std::string& key) const;
 
-  YAML::Node child(const std::string& key);                       // required, any kind
+  YAML::Node child(const std::string& key);  // required, any kind
   std::optional<YAML::Node> optional_child(const std::string& key);
-  MapReader map(const std::string& key);                          // required mapping
+  MapReader map(const std::string& key);  // required mapping
   std::optional<MapReader> optional_map(const std::string& key);
 
   std::string string(const std::string& key);
   std::string string_or(const std::string& key, const std::string& fallback);
-  double number(const std::string& key);                 // finite double
+  double number(const std::string& key);  // finite double
   double number_or(const std::string& key, double fallback);
   std::int64_t integer(const std::string& key);
   std::int64_t integer_or(const std::string& key, std::int64_t fallback);
   bool boolean(const std::string& key);
   bool boolean_or(const std::string& key, bool fallback);
-  std::vector<double> numbers(const std::string& key);   // a sequence of finite doubles
+  std::vector<double> numbers(const std::string& key);  // a sequence of finite doubles
   template <std::size_t N>
   std::array<double, N> numbers_fixed(const std::string& key) {
     const YAML::Node n = child(key);

@@ -1,0 +1,126 @@
+#pragma once
+// Sample time: maps CLOCK_MONOTONIC sample instants to NTP-aligned wall time
+// (utime) so that a stream never runs backwards, NTP's slews pass through and a
+// step of the system clock is detected, counted, flagged and slewed out at a
+// bounded rate. Clock health comes from ntp_adjtime(), read off the loop
+// thread. See docs/time.md.
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+namespace exodaq::core {
+
+struct ClockHealth {
+  bool valid = false;         // ntp_adjtime() answered
+  bool synchronised = false;  // within the policy's error bounds
+  bool unsync_flag = true;    // STA_UNSYNC as the kernel reports it
+  double est_error_us = 0.0;
+  double max_error_us = 0.0;
+  double offset_us = 0.0;
+  int time_state = 0;  // ntp_adjtime return value (TIME_OK, TIME_ERROR, ...)
+};
+
+// The two clocks and the kernel's NTP state. Injectable so tests can step,
+// slew and unsynchronise the wall clock deterministically.
+class ClockSource {
+ public:
+  virtual ~ClockSource() = default;
+  virtual std::int64_t mono_ns() noexcept = 0;
+  virtual std::int64_t wall_ns() noexcept = 0;
+  virtual ClockHealth ntp_health() noexcept = 0;  // fills everything but `synchronised`
+};
+
+// The real clocks: clock_gettime and read-only ntp_adjtime.
+std::unique_ptr<ClockSource> make_system_clock();
+
+enum class RequireSync : std::uint8_t {
+  kIgnore,  // clock health reported only
+  kMark,    // samples carry SAMPLE_CLOCK_UNSYNC while unsynchronised
+  kHold,    // as kMark, and the service stays degraded (palm invalid) until synchronised
+};
+
+struct ClockPolicy {
+  RequireSync require_sync = RequireSync::kMark;
+  double max_est_error_us = 5'000.0;           // synchronised needs esterror at most this
+  double max_max_error_us = 100'000.0;         // ... and maxerror at most this
+  std::int64_t step_threshold_ns = 2'000'000;  // an offset change larger than this is a step
+  double slew_ppm = 1'000.0;                   // ordinary tracking rate (NTP slews at most 500 ppm)
+  double step_slew_ppm = 100'000.0;            // how fast a step is absorbed: 10 % (1 s in 10 s)
+};
+
+// Latest offset (wall - mono) and health, written by ClockMonitor's thread,
+// read by the loop with relaxed atomics (no lock, no syscall).
+struct ClockShared {
+  std::atomic<std::int64_t> offset_ns{0};
+  std::atomic<std::int64_t> offset_generation{0};
+  std::atomic<bool> synchronised{false};
+  std::atomic<bool> health_valid{false};
+  std::atomic<double> est_error_us{0.0};
+  std::atomic<double> max_error_us{0.0};
+  std::atomic<double> ntp_offset_us{0.0};
+};
+
+// Off the loop thread: measures the wall - mono offset at 10 Hz (the tightest
+// of three bracketed readings) and reads ntp_adjtime() once a second.
+class ClockMonitor {
+ public:
+  ClockMonitor(ClockSource& clock, const ClockPolicy& policy, ClockShared& shared);
+  ~ClockMonitor();
+  ClockMonitor(const ClockMonitor&) = delete;
+  ClockMonitor& operator=(const ClockMonitor&) = delete;
+
+  void measure_offset() noexcept;  // one offset measurement (also called by the thread)
+  void read_health() noexcept;     // one ntp_adjtime read
+  void start();                    // the 10 Hz thread
+  void stop() noexcept;
+  void set_policy(const ClockPolicy& policy) noexcept;
+
+ private:
+  void run();
+
+  ClockSource& clock_;
+  ClockShared& shared_;
+  std::atomic<double> max_est_error_us_;
+  std::atomic<double> max_max_error_us_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stopping_ = false;
+  std::thread thread_;
+};
+
+// On the loop thread: turns a sample's mono_ns into utime. Never runs
+// backwards; a step is slewed out at policy.step_slew_ppm while samples are
+// flagged; ordinary changes are tracked at policy.slew_ppm.
+class WallTimeMapper {
+ public:
+  void set_policy(const ClockPolicy& policy) noexcept { policy_ = policy; }
+
+  struct Result {
+    std::int64_t utime_us = 0;
+    bool stepping = false;  // a step is being absorbed: utime may be off by more than the threshold
+    bool new_step = false;  // a step was detected at this sample
+  };
+  Result map(std::int64_t mono_ns, std::int64_t target_offset_ns,
+             std::int64_t target_generation) noexcept;
+
+  std::int64_t steps() const noexcept { return steps_; }
+  std::int64_t applied_offset_ns() const noexcept { return applied_; }
+  // utime minus the measured wall clock at the last sample (the correction still to slew out).
+  std::int64_t pending_correction_ns() const noexcept { return applied_ - last_target_; }
+
+ private:
+  ClockPolicy policy_;
+  bool started_ = false;
+  std::int64_t applied_ = 0;
+  std::int64_t last_mono_ = 0;
+  std::int64_t last_utime_ns_ = 0;
+  std::int64_t last_target_ = 0;
+  std::int64_t last_generation_ = -1;
+  std::int64_t steps_ = 0;
+  bool stepping_ = false;
+};
+
+}  // namespace exodaq::core

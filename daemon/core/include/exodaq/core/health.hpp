@@ -1,0 +1,68 @@
+#pragma once
+// Loop health: per-cycle timing over a status window, the service state
+// machine, and the status_t message (10 Hz). Assembled on the loop thread
+// without allocation (fixed arrays, nth_element, snprintf into fixed buffers).
+#include <array>
+#include <cstdint>
+
+#include "exodaq/core/joint_tracker.hpp"
+#include "exodaq/core/pipeline.hpp"
+#include "exodaq/drivers/encoder_sample.hpp"
+
+namespace exodaq::core {
+
+enum class ServiceState : std::int8_t {
+  kStarting = 0,
+  kHoming = 1,
+  kRunning = 2,
+  kDegraded = 3,
+  kFault = 4,
+  kStopping = 5,
+};
+const char* state_name(ServiceState s) noexcept;
+
+struct Percentiles {
+  double p50_us = 0.0;
+  double p99_us = 0.0;
+  double max_us = 0.0;
+};
+
+// Up to kCapacity samples per window; older ones are dropped if a window runs long.
+class TimingWindow {
+ public:
+  static constexpr int kCapacity = 8192;
+  void add(std::int64_t value_ns) noexcept {
+    if (n_ < kCapacity) values_[static_cast<std::size_t>(n_++)] = value_ns;
+  }
+  int size() const noexcept { return n_; }
+  Percentiles percentiles() noexcept;  // reorders the values
+  void clear() noexcept { n_ = 0; }
+
+ private:
+  std::array<std::int64_t, kCapacity> values_{};
+  int n_ = 0;
+};
+
+// Aggregated facts of one status window, from which the state follows.
+struct WindowFacts {
+  int cycles = 0;
+  int samples_present = 0;
+  int valid_poses = 0;
+  std::uint32_t sample_flags_or = 0;
+  std::array<std::uint32_t, kJointCount> joint_flags_or{};
+  bool all_homed = false;   // at the end of the window
+  bool clock_hold = false;  // require_sync: hold and unsynchronised
+  drivers::BusState bus_state = drivers::BusState::kUnknown;
+  std::int64_t overruns = 0;
+};
+
+// The state machine (docs/operations.md):
+//   starting -> homing       first sample received
+//   homing   -> running      every joint homed and the window clean
+//   running  -> degraded     any joint fault, sample/source flag, overrun or clock hold in the
+//   window degraded -> running      a clean window any      -> fault        no sample for
+//   fault_after_ms, bus-off or interface down fault    -> homing/running/degraded   samples return
+ServiceState next_state(ServiceState current, const WindowFacts& facts,
+                        std::int64_t ms_since_last_sample, std::int64_t fault_after_ms) noexcept;
+
+}  // namespace exodaq::core

@@ -1,0 +1,134 @@
+#pragma once
+// One joint's path from encoder counts to a calibrated angle: 16-bit unwrap,
+// index homing (seed 000 eq. 4: theta = delta_theta0 + theta_R), velocity
+// estimate, and the per-joint faults (stale, glitch, out of range, lost
+// counts). Integer counts end to end; angles are derived, never accumulated.
+// Allocation-free after construction; runs on the loop thread.
+#include <array>
+#include <cstdint>
+
+namespace exodaq::core {
+
+// Same bit values as joint_state_t JOINT_*.
+namespace joint_flag {
+inline constexpr std::uint32_t kUnhomed = 1U << 0;
+inline constexpr std::uint32_t kStale = 1U << 1;
+inline constexpr std::uint32_t kGlitch = 1U << 2;
+inline constexpr std::uint32_t kOutOfRange = 1U << 3;
+inline constexpr std::uint32_t kLostCounts = 1U << 4;
+inline constexpr std::uint32_t kHomingRejected = 1U << 5;
+inline constexpr std::uint32_t kHeld = 1U << 6;
+inline constexpr std::uint32_t kBoardError = 1U << 7;
+// Flags that make a joint's angle untrustworthy (kHeld alone does not: the
+// sample-level kMissing flag covers a held cycle).
+inline constexpr std::uint32_t kFaults =
+    kUnhomed | kStale | kGlitch | kOutOfRange | kLostCounts | kHomingRejected | kBoardError;
+}  // namespace joint_flag
+
+enum class HomingState : std::int8_t { kUnhomed = 0, kHomed = 1, kRejected = 2 };
+
+// No strings here: configs are copied on the loop thread at a reload.
+struct JointTrackerConfig {
+  int channel = 0;                      // encoder channel on the board (0..5)
+  int direction = 1;                    // +1 or -1: encoder count sign relative to the joint angle
+  std::int64_t counts_per_rev = 10000;  // encoder counts per encoder revolution (CPR x 4)
+  double gear_ratio = 1.0;              // encoder revolutions per joint revolution
+  double offset_rad = 0.0;              // delta_theta0: the joint angle at the reference index
+  double home_rad = 0.0;                // home posture angle: the reference before homing
+  double lower_rad = -3.14159;          // mechanical limits (model)
+  double upper_rad = 3.14159;
+  double limit_margin_rad = 0.0349;  // out-of-range margin beyond the limits
+  double max_speed_rad_s = 5.0;      // glitch bound (already including its margin)
+  std::int64_t index_tolerance_counts = 2;
+  std::int64_t stale_ns = 20'000'000;
+  std::int64_t fault_hold_ns = 100'000'000;  // how long kLostCounts stays after a correction
+  int velocity_window = 21;  // samples in the velocity fit (odd, <= kMaxVelocityWindow)
+};
+
+inline constexpr int kMaxVelocityWindow = 64;
+
+struct JointCounters {
+  std::int64_t glitches = 0;
+  std::int64_t lost_count_events = 0;
+  std::int64_t stale_events = 0;
+  std::int64_t out_of_range_events = 0;
+  std::int64_t homings = 0;
+  std::int64_t rejected_homings = 0;
+  std::int64_t last_index_drift_counts = 0;
+};
+
+// What the tracker reports after each cycle.
+struct JointReading {
+  double position_rad = 0.0;
+  double velocity_rad_s = 0.0;
+  std::int64_t count = 0;  // unwrapped encoder count since power-up
+  bool homed = false;
+  std::uint32_t flags = joint_flag::kUnhomed;
+  HomingState homing = HomingState::kUnhomed;
+};
+
+// One event a tracker wants logged (off the loop thread).
+enum class JointEvent : std::uint8_t {
+  kNone,
+  kHomed,
+  kHomingRejected,
+  kLostCounts,
+  kGlitch,
+  kStale,
+  kOutOfRange,
+  kUnwrapAmbiguous,
+};
+
+class JointTracker {
+ public:
+  JointTracker() = default;
+  explicit JointTracker(const JointTrackerConfig& config);
+
+  // Applies new calibration / limits at a cycle boundary, keeping the counts
+  // and the homing (the reference index count stays; its angle is re-derived).
+  void reconfigure(const JointTrackerConfig& config) noexcept;
+
+  // One cycle. `fresh`: a new count arrived for this joint this cycle.
+  // `index_valid`: index_count16 holds the count latched at an index edge.
+  // Returns the most important event of the cycle (kNone usually).
+  JointEvent update(std::int64_t sample_mono_ns, bool fresh, std::uint16_t count16,
+                    bool index_valid, std::uint16_t index_count16, bool board_error) noexcept;
+
+  const JointReading& reading() const noexcept { return reading_; }
+  const JointCounters& counters() const noexcept { return counters_; }
+  const JointTrackerConfig& config() const noexcept { return config_; }
+  // Radians per encoder count at the joint.
+  double rad_per_count() const noexcept { return rad_per_count_; }
+
+ private:
+  void home_on_index(std::int64_t index_count, JointEvent& event) noexcept;
+  double angle_of(std::int64_t count) const noexcept;
+  void update_velocity(std::int64_t t_ns) noexcept;
+
+  JointTrackerConfig config_;
+  double rad_per_count_ = 0.0;
+
+  bool have_count_ = false;
+  std::int64_t count_ = 0;
+  std::int64_t last_fresh_ns_ = 0;
+  std::int64_t powerup_count_ = 0;
+
+  HomingState homing_ = HomingState::kUnhomed;
+  std::int64_t ref_count_ = 0;  // unwrapped count at the reference index
+  std::int64_t ref_turns_ = 0;  // which index crossing (k in delta_theta0 + k 2pi/gear)
+  bool suspect_ = false;        // a glitch or ambiguous unwrap: wrong until the next index
+  bool stale_ = false;
+  bool out_of_range_ = false;
+  std::int64_t lost_counts_until_ns_ = 0;
+
+  // velocity: a least-squares line through the last `velocity_window` fresh samples
+  std::array<std::int64_t, kMaxVelocityWindow> vel_t_{};
+  std::array<std::int64_t, kMaxVelocityWindow> vel_c_{};
+  int vel_n_ = 0;
+  int vel_head_ = 0;
+
+  JointReading reading_;
+  JointCounters counters_;
+};
+
+}  // namespace exodaq::core

@@ -1,0 +1,74 @@
+#pragma once
+// One cycle's data path after the source: counts -> joint angles (per-joint
+// trackers) -> palm pose and shoulder manipulability -> validity. No I/O, no
+// allocation after construction; runs on the loop thread.
+#include <array>
+#include <cstdint>
+
+#include "exodaq/core/joint_tracker.hpp"
+#include "exodaq/drivers/encoder_sample.hpp"
+#include "exodaq/kinematics/chain.hpp"
+#include "exodaq/kinematics/rig_kinematics.hpp"
+
+namespace exodaq::core {
+
+inline constexpr int kJointCount = 6;
+
+// Same bit values as palm_pose_t INVALID_*.
+namespace invalid_reason {
+inline constexpr std::uint32_t kUnhomed = 1U << 0;
+inline constexpr std::uint32_t kJointFault = 1U << 1;
+inline constexpr std::uint32_t kSample = 1U << 2;
+inline constexpr std::uint32_t kSource = 1U << 3;
+inline constexpr std::uint32_t kClock = 1U << 4;
+}  // namespace invalid_reason
+
+struct PipelineConfig {
+  std::array<JointTrackerConfig, kJointCount> joints;
+  kin::Chain chain;  // with the calibration's DH deviations and palm offset applied
+  kin::RigKinematicsConfig rig;
+};
+
+// Everything one cycle publishes.
+struct CycleResult {
+  std::int64_t seq = 0;
+  std::int64_t mono_ns = 0;
+  std::int64_t utime_us = 0;
+  std::uint32_t sample_flags = 0;  // drivers::sample_flag bits (incl. clock and late bits)
+  std::array<JointReading, kJointCount> joints{};
+  std::array<JointEvent, kJointCount> events{};
+  kin::RigPose pose;
+  bool valid = false;
+  std::uint32_t invalid_reason = 0;
+};
+
+// Sample flags that make the cycle's palm pose invalid.
+inline constexpr std::uint32_t kInvalidatingSampleFlags =
+    drivers::sample_flag::kMissing | drivers::sample_flag::kPartial;
+inline constexpr std::uint32_t kInvalidatingSourceFlags =
+    drivers::sample_flag::kBoardError | drivers::sample_flag::kBusError;
+
+class Pipeline {
+ public:
+  // `config` must outlive the pipeline (or the next use()).
+  explicit Pipeline(const PipelineConfig& config);
+
+  // Switches to another configuration at a cycle boundary (SIGHUP reload):
+  // keeps counts and homing, copies no strings, allocates nothing.
+  void use(const PipelineConfig& config) noexcept;
+
+  // Processes one sample. `clock_invalid`: the clock policy marks this sample
+  // unusable (step being absorbed, or unsynchronised under require_sync: hold).
+  void process(const drivers::EncoderSample& sample, std::uint32_t extra_sample_flags,
+               bool clock_invalid, CycleResult& out) noexcept;
+
+  const JointTracker& joint(int i) const noexcept { return trackers_[static_cast<std::size_t>(i)]; }
+  const PipelineConfig& config() const noexcept { return *config_; }
+
+ private:
+  const PipelineConfig* config_;
+  std::array<JointTracker, kJointCount> trackers_;
+  kin::JointVector q_;
+};
+
+}  // namespace exodaq::core

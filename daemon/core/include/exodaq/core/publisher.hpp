@@ -1,0 +1,89 @@
+#pragma once
+// Publishing without touching the loop: the loop thread encodes each message
+// into a pre-allocated slot of a single-producer/single-consumer ring and
+// posts a semaphore; the publisher thread hands the bytes to the sink (LCM,
+// a log file, or a test's memory). The loop never blocks on the network.
+#include <semaphore.h>
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace exodaq::core {
+
+enum class ChannelId : std::uint8_t { kJointState = 0, kPalmPose, kEncoderRaw, kStatus };
+inline constexpr int kChannelIdCount = 4;
+// Base names; the configured prefix goes in front.
+const char* channel_base_name(ChannelId id) noexcept;
+
+inline constexpr std::size_t kMaxMessageBytes = 2048;
+
+struct OutgoingMessage {
+  ChannelId channel = ChannelId::kJointState;
+  std::uint32_t size = 0;
+  std::int64_t utime_us = 0;  // the message's sample time (log files use it as the event time)
+  std::array<std::uint8_t, kMaxMessageBytes> bytes{};
+};
+
+// Where encoded messages go. Called on the publisher thread only.
+class MessageSink {
+ public:
+  virtual ~MessageSink() = default;
+  // Returns false when the transport refused the message (counted).
+  virtual bool publish(const std::string& channel, const OutgoingMessage& msg) noexcept = 0;
+  virtual void flush() noexcept {}
+};
+
+// LCM over UDP multicast (lcm_publish of pre-encoded bytes).
+std::unique_ptr<MessageSink> make_lcm_sink(const std::string& url);
+
+class Publisher {
+ public:
+  Publisher(std::unique_ptr<MessageSink> sink, std::string prefix, std::size_t capacity = 1024);
+  ~Publisher();
+  Publisher(const Publisher&) = delete;
+  Publisher& operator=(const Publisher&) = delete;
+
+  void start();
+  void stop() noexcept;  // drains what is queued, then joins
+
+  // Loop thread: a slot to encode into, or nullptr when the ring is full (the
+  // message is dropped and counted). commit() hands it over.
+  OutgoingMessage* acquire() noexcept;
+  void commit() noexcept;
+
+  // Blocks until everything committed so far has been handed to the sink (tests, replay).
+  void drain() noexcept;
+
+  std::int64_t published() const noexcept { return published_.load(std::memory_order_relaxed); }
+  std::int64_t failures() const noexcept { return failures_.load(std::memory_order_relaxed); }
+  std::int64_t ring_drops() const noexcept { return drops_.load(std::memory_order_relaxed); }
+  const std::string& channel_name(ChannelId id) const noexcept {
+    return channels_[static_cast<std::size_t>(id)];
+  }
+  MessageSink& sink() noexcept { return *sink_; }
+
+ private:
+  void run() noexcept;
+  bool publish_one() noexcept;
+
+  std::unique_ptr<MessageSink> sink_;
+  std::array<std::string, kChannelIdCount> channels_;
+  std::vector<OutgoingMessage> slots_;
+  std::size_t mask_;
+  alignas(64) std::atomic<std::uint64_t> head_{0};  // written by the loop
+  alignas(64) std::atomic<std::uint64_t> tail_{0};  // written by the publisher thread
+  std::atomic<std::int64_t> published_{0};
+  std::atomic<std::int64_t> failures_{0};
+  std::atomic<std::int64_t> drops_{0};
+  std::atomic<bool> stopping_{false};
+  sem_t ready_{};
+  std::thread thread_;
+  bool reserved_ = false;
+};
+
+}  // namespace exodaq::core

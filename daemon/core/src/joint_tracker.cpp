@@ -1,0 +1,196 @@
+#include "exodaq/core/joint_tracker.hpp"
+
+#include <cmath>
+#include <cstdlib>
+
+namespace exodaq::core {
+
+namespace {
+constexpr double kTwoPi = 6.283185307179586;
+
+// The signed 16-bit step from the low 16 bits of `previous` to `raw`.
+std::int64_t step16(std::int64_t previous, std::uint16_t raw) noexcept {
+  const auto prev16 = static_cast<std::uint16_t>(previous & 0xFFFF);
+  return static_cast<std::int16_t>(static_cast<std::uint16_t>(raw - prev16));
+}
+
+std::int64_t round_div(std::int64_t num, std::int64_t den) noexcept {
+  return static_cast<std::int64_t>(
+      std::llround(static_cast<double>(num) / static_cast<double>(den)));
+}
+}  // namespace
+
+JointTracker::JointTracker(const JointTrackerConfig& config) {
+  reconfigure(config);
+}
+
+void JointTracker::reconfigure(const JointTrackerConfig& config) noexcept {
+  const bool geometry_changed =
+      config.channel != config_.channel || config.direction != config_.direction ||
+      config.counts_per_rev != config_.counts_per_rev || config.gear_ratio != config_.gear_ratio;
+  config_ = config;
+  if (config_.velocity_window < 2) config_.velocity_window = 2;
+  if (config_.velocity_window > kMaxVelocityWindow) config_.velocity_window = kMaxVelocityWindow;
+  rad_per_count_ = kTwoPi / (static_cast<double>(config_.counts_per_rev) * config_.gear_ratio);
+  if (geometry_changed && homing_ == HomingState::kHomed) {
+    // A different encoder geometry invalidates the reference: home again.
+    homing_ = HomingState::kUnhomed;
+  }
+  if (vel_n_ > config_.velocity_window) vel_n_ = config_.velocity_window;
+}
+
+double JointTracker::angle_of(std::int64_t count) const noexcept {
+  if (homing_ == HomingState::kHomed) {
+    const std::int64_t counts_from_ref =
+        ref_turns_ * config_.counts_per_rev + config_.direction * (count - ref_count_);
+    return config_.offset_rad + static_cast<double>(counts_from_ref) * rad_per_count_;
+  }
+  // Before homing: relative to power-up, with the rig in its home posture.
+  return config_.home_rad +
+         static_cast<double>(config_.direction * (count - powerup_count_)) * rad_per_count_;
+}
+
+void JointTracker::home_on_index(std::int64_t index_count, JointEvent& event) noexcept {
+  // With gear ratio g the index repeats every 2pi/g of joint travel. The
+  // reference crossing is the one nearest to where the joint is believed to be
+  // (home posture plus travel since power-up): unique while the joint was
+  // within pi/g of home at power-up, which the rig's spring ensures.
+  const double estimate =
+      config_.home_rad +
+      static_cast<double>(config_.direction * (index_count - powerup_count_)) * rad_per_count_;
+  const double turn_rad = static_cast<double>(config_.counts_per_rev) * rad_per_count_;
+  const auto turns =
+      static_cast<std::int64_t>(std::llround((estimate - config_.offset_rad) / turn_rad));
+  const double index_angle = config_.offset_rad + static_cast<double>(turns) * turn_rad;
+  if (index_angle < config_.lower_rad - config_.limit_margin_rad ||
+      index_angle > config_.upper_rad + config_.limit_margin_rad) {
+    homing_ = HomingState::kRejected;
+    ++counters_.rejected_homings;
+    event = JointEvent::kHomingRejected;
+    return;
+  }
+  homing_ = HomingState::kHomed;
+  ref_count_ = index_count;
+  ref_turns_ = turns;
+  suspect_ = false;
+  ++counters_.homings;
+  event = JointEvent::kHomed;
+}
+
+void JointTracker::update_velocity(std::int64_t t_ns) noexcept {
+  vel_t_[static_cast<std::size_t>(vel_head_)] = t_ns;
+  vel_c_[static_cast<std::size_t>(vel_head_)] = count_;
+  vel_head_ = (vel_head_ + 1) % config_.velocity_window;
+  if (vel_n_ < config_.velocity_window) ++vel_n_;
+  if (vel_n_ < 2) {
+    reading_.velocity_rad_s = 0.0;
+    return;
+  }
+  // Least-squares slope of count over time, in coordinates relative to the
+  // newest sample so the sums stay small and exact enough in double.
+  double st = 0.0;
+  double sc = 0.0;
+  for (int i = 0; i < vel_n_; ++i) {
+    st += static_cast<double>(vel_t_[static_cast<std::size_t>(i)] - t_ns) * 1e-9;
+    sc += static_cast<double>(vel_c_[static_cast<std::size_t>(i)] - count_);
+  }
+  const double n = vel_n_;
+  const double tm = st / n;
+  const double cm = sc / n;
+  double stt = 0.0;
+  double stc = 0.0;
+  for (int i = 0; i < vel_n_; ++i) {
+    const double dt = static_cast<double>(vel_t_[static_cast<std::size_t>(i)] - t_ns) * 1e-9 - tm;
+    const double dc = static_cast<double>(vel_c_[static_cast<std::size_t>(i)] - count_) - cm;
+    stt += dt * dt;
+    stc += dt * dc;
+  }
+  const double slope = stt > 0.0 ? stc / stt : 0.0;  // counts per second
+  reading_.velocity_rad_s = config_.direction * slope * rad_per_count_;
+}
+
+JointEvent JointTracker::update(std::int64_t t_ns, bool fresh, std::uint16_t count16,
+                                bool index_valid, std::uint16_t index_count16,
+                                bool board_error) noexcept {
+  JointEvent event = JointEvent::kNone;
+  if (fresh) {
+    if (!have_count_) {
+      have_count_ = true;
+      count_ = count16;
+      powerup_count_ = count_;
+    } else {
+      const std::int64_t step = step16(count_, count16);
+      const double dt_s = static_cast<double>(t_ns - last_fresh_ns_) * 1e-9;
+      // The most counts the joint can physically produce since the last fresh
+      // count, plus one count of quantisation.
+      const double max_counts = config_.max_speed_rad_s * (dt_s > 0 ? dt_s : 0.0) / rad_per_count_;
+      if (max_counts >= 32767.0) {
+        // So long without a count that the 16-bit step could be off by 65536:
+        // the count is unknowable until the next index.
+        suspect_ = true;
+        event = JointEvent::kUnwrapAmbiguous;
+      } else if (static_cast<double>(std::llabs(step)) > max_counts + 1.0) {
+        ++counters_.glitches;
+        suspect_ = true;
+        event = JointEvent::kGlitch;
+      }
+      count_ += step;
+    }
+    last_fresh_ns_ = t_ns;
+    stale_ = false;
+    update_velocity(t_ns);
+  } else if (have_count_ && t_ns - last_fresh_ns_ > config_.stale_ns && !stale_) {
+    stale_ = true;
+    ++counters_.stale_events;
+    if (event == JointEvent::kNone) event = JointEvent::kStale;
+  }
+
+  if (index_valid && have_count_) {
+    const std::int64_t index_count = count_ + step16(count_, index_count16);
+    if (homing_ != HomingState::kHomed) {
+      home_on_index(index_count, event);
+    } else {
+      const std::int64_t travel = index_count - ref_count_;
+      const std::int64_t turns = round_div(travel, config_.counts_per_rev);
+      const std::int64_t drift = travel - turns * config_.counts_per_rev;
+      counters_.last_index_drift_counts = drift;
+      if (std::llabs(drift) > config_.index_tolerance_counts) {
+        // Counts were lost or gained: re-home on this index (seed 000 eq. 4).
+        ++counters_.lost_count_events;
+        ref_turns_ += config_.direction * turns;
+        ref_count_ = index_count;
+        lost_counts_until_ns_ = t_ns + config_.fault_hold_ns;
+        event = JointEvent::kLostCounts;
+      }
+      suspect_ = false;  // the index has verified (or corrected) the count
+    }
+  }
+
+  JointReading& r = reading_;
+  r.count = count_;
+  r.homing = homing_;
+  r.homed = homing_ == HomingState::kHomed;
+  r.position_rad = angle_of(count_);
+  std::uint32_t flags = 0;
+  if (!r.homed) flags |= joint_flag::kUnhomed;
+  if (homing_ == HomingState::kRejected) flags |= joint_flag::kHomingRejected;
+  if (stale_ || !have_count_) flags |= joint_flag::kStale;
+  if (suspect_) flags |= joint_flag::kGlitch;
+  if (t_ns < lost_counts_until_ns_) flags |= joint_flag::kLostCounts;
+  if (!fresh) flags |= joint_flag::kHeld;
+  if (board_error) flags |= joint_flag::kBoardError;
+  const bool beyond = r.homed && (r.position_rad < config_.lower_rad - config_.limit_margin_rad ||
+                                  r.position_rad > config_.upper_rad + config_.limit_margin_rad);
+  if (beyond) {
+    flags |= joint_flag::kOutOfRange;
+    if (!out_of_range_) {
+      ++counters_.out_of_range_events;
+      if (event == JointEvent::kNone) event = JointEvent::kOutOfRange;
+    }
+  }
+  out_of_range_ = beyond;
+  r.flags = flags;
+  return event;
+}
+
+}  // namespace exodaq::core

@@ -1,0 +1,54 @@
+#include "exodaq/core/pipeline.hpp"
+
+namespace exodaq::core {
+
+Pipeline::Pipeline(const PipelineConfig& config) : config_(&config) {
+  for (int i = 0; i < kJointCount; ++i) {
+    trackers_[static_cast<std::size_t>(i)] =
+        JointTracker(config.joints[static_cast<std::size_t>(i)]);
+  }
+  q_.resize(kJointCount);
+}
+
+void Pipeline::use(const PipelineConfig& config) noexcept {
+  config_ = &config;
+  for (int i = 0; i < kJointCount; ++i) {
+    trackers_[static_cast<std::size_t>(i)].reconfigure(config.joints[static_cast<std::size_t>(i)]);
+  }
+}
+
+void Pipeline::process(const drivers::EncoderSample& sample, std::uint32_t extra_sample_flags,
+                       bool clock_invalid, CycleResult& out) noexcept {
+  out.sample_flags = sample.flags | extra_sample_flags;
+  if (!sample.present) out.sample_flags |= drivers::sample_flag::kMissing;
+  const bool board_error = (sample.flags & drivers::sample_flag::kBoardError) != 0;
+  std::uint32_t any_fault = 0;
+  bool all_homed = true;
+  for (int i = 0; i < kJointCount; ++i) {
+    auto& tracker = trackers_[static_cast<std::size_t>(i)];
+    const int ch = tracker.config().channel;
+    const auto bit = 1U << static_cast<unsigned>(ch);
+    const bool fresh = sample.present && (sample.channel_fresh & bit) != 0;
+    const bool index_valid = sample.present && (sample.index_count_valid & bit) != 0;
+    out.events[static_cast<std::size_t>(i)] = tracker.update(
+        sample.mono_ns, fresh, sample.count16[static_cast<std::size_t>(ch)], index_valid,
+        sample.index_count16[static_cast<std::size_t>(ch)], board_error);
+    const JointReading& r = tracker.reading();
+    out.joints[static_cast<std::size_t>(i)] = r;
+    q_[i] = r.position_rad;
+    all_homed = all_homed && r.homed;
+    any_fault |= r.flags & (joint_flag::kFaults & ~joint_flag::kUnhomed);
+  }
+  kin::evaluate_rig(config_->chain, config_->rig, q_, out.pose);
+
+  std::uint32_t reason = 0;
+  if (!all_homed) reason |= invalid_reason::kUnhomed;
+  if (any_fault != 0) reason |= invalid_reason::kJointFault;
+  if ((out.sample_flags & kInvalidatingSampleFlags) != 0) reason |= invalid_reason::kSample;
+  if ((out.sample_flags & kInvalidatingSourceFlags) != 0) reason |= invalid_reason::kSource;
+  if (clock_invalid) reason |= invalid_reason::kClock;
+  out.invalid_reason = reason;
+  out.valid = reason == 0;
+}
+
+}  // namespace exodaq::core

@@ -1,0 +1,47 @@
+// exodaqd: the 1 kHz acquisition service. Reads the encoder source, computes
+// joint angles and the palm pose, publishes them over LCM. See docs/operations.md.
+#include <signal.h>
+#include <spdlog/async.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/sinks/systemd_sink.h>
+#include <spdlog/spdlog.h>
+#include <systemd/sd-daemon.h>
+#include <time.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+
+#include "exodaq/core/daemon_runtime.hpp"
+#include "exodaq/version.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"exodaqd: exoskeleton encoder acquisition service (1 kHz, LCM)"};
+  std::string config_path;
+  bool check_only = false;
+  bool print_config = false;
+  std::string log_level;
+  app.add_option("-c,--config", config_path, "service configuration file (YAML)");
+  app.add_flag("--check-config", check_only, "validate the configuration and exit 0 (valid) or 1");
+  app.add_flag("--print-config", print_config, "print the effective configuration and exit");
+  app.add_option("--log-level", log_level,
+                 "trace|debug|info|warn|error|critical|off (overrides config and SPDLOG_LEVEL)");
+  app.set_version_flag(
+      "--version", std::string("exodaqd ") + exodaq::kVersion + " (" + exodaq::kGitDescribe + ")");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (config_path.empty()) {
+    std::fprintf(stderr, "exodaqd: --config FILE is required\n");
+    return 2;
+  }
+  exodaq::core::DaemonOptions options;
+  options.config_path = config_path;
+  options.log_level = log_level;
+  options.check_only = check_only;
+  options.print_config = print_config;
+  return exodaq::core::run_daemon(options);
+}
