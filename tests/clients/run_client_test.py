@@ -1,0 +1,290 @@
+#!/usr/bin/env python3
+"""Test driver for the client binding tests (tests/clients/CMakeLists.txt).
+
+Every test uses its own channel prefix (test name + pid + random), so tests can
+run in parallel with each other and with a live exodaqd on the same URL.
+
+  run_client_test.py files FIXTURE -- CLIENT... {dir}
+      fixture writes the four encoded messages into a temporary {dir}; the
+      client decodes them; its sorted output must equal `FIXTURE dump`.
+  run_client_test.py subscribe FIXTURE URL [--big N] -- CLIENT... {url} {prefix} {wait_ms}|{wait_s}
+      the client runs as its own process and subscribes; once it reports
+      "subscribed" on stderr, FIXTURE publishes the messages from a second
+      process until the client is done; output compared as above.
+  run_client_test.py echo-csv FIXTURE URL -- TOOL
+  run_client_test.py echo-literal FIXTURE URL -- TOOL
+  run_client_test.py echo-table FIXTURE URL -- TOOL
+  run_client_test.py status FIXTURE URL -- TOOL
+  run_client_test.py status-timeout FIXTURE URL -- TOOL
+      the `exodaq echo` / `exodaq status` commands against the fixture publisher.
+"""
+import os
+import pty
+import random
+import re
+import select
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+WAIT_S = 20  # generous: a loaded CI machine, JVM start-up
+
+
+def fail(msg):
+    print("FAIL: " + msg, file=sys.stderr)
+    sys.exit(1)
+
+
+def unique_prefix(tag):
+    return "T%s_%d_%06d_" % (re.sub(r"\W", "", tag), os.getpid(), random.randrange(10 ** 6))
+
+
+def subst(cmd, **kw):
+    return [c.format(**kw) for c in cmd]
+
+
+def expected_dump(fixture):
+    return subprocess.run([fixture, "dump"], check=True, capture_output=True,
+                          text=True).stdout.splitlines()
+
+
+def compare(expected, actual_text, what):
+    actual = actual_text.splitlines()
+    exp, act = sorted(expected), sorted(actual)
+    if exp != act:
+        missing = sorted(set(exp) - set(act))
+        extra = sorted(set(act) - set(exp))
+        fail("%s: %d lines expected, %d got\n  missing: %s\n  unexpected: %s" % (
+            what, len(exp), len(act), "\n    ".join(missing[:40]), "\n    ".join(extra[:40])))
+    print("%s: all %d values match" % (what, len(exp)))
+
+
+class Publisher:
+    """The fixture publishing from its own process until stopped."""
+
+    def __init__(self, fixture, url, prefix, *extra):
+        self.proc = subprocess.Popen(
+            [fixture, "publish", url, prefix, "--count", "100000", "--interval-ms", "10"] +
+            list(extra), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.terminate()
+        try:
+            _, err = self.proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            _, err = self.proc.communicate()
+        if err:
+            sys.stderr.write(err)
+        if self.proc.returncode == 3:
+            fail("the publisher cannot open LCM: no multicast route? see docs/messages.md")
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+def run_files(fixture, client):
+    with tempfile.TemporaryDirectory(prefix="exodaq-clients-") as d:
+        subprocess.run([fixture, "write", d], check=True)
+        r = subprocess.run(subst(client, dir=d), capture_output=True, text=True, timeout=120)
+        sys.stderr.write(r.stderr)
+        if r.returncode != 0:
+            fail("client exited %d\n%s" % (r.returncode, r.stdout))
+        compare(expected_dump(fixture), r.stdout, os.path.basename(client[0]) + " files")
+
+
+def run_subscribe(fixture, url, client, big):
+    prefix = unique_prefix(os.path.basename(client[-1] if client else "sub"))
+    cmd = subst(client, url=url, prefix=prefix, wait_ms=str(WAIT_S * 1000), wait_s=str(WAIT_S))
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    subscribed = threading.Event()
+    err_lines = []
+
+    def read_err():
+        for line in proc.stderr:
+            err_lines.append(line)
+            if "subscribed" in line:
+                subscribed.set()
+
+    t = threading.Thread(target=read_err, daemon=True)
+    t.start()
+    if not subscribed.wait(WAIT_S):
+        proc.kill()
+        fail("client never subscribed:\n" + "".join(err_lines))
+    extra = ["--big", str(big)] if big else []
+    with Publisher(fixture, url, prefix, *extra):
+        try:
+            out, _ = proc.communicate(timeout=WAIT_S + 10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, _ = proc.communicate()
+    t.join(5)
+    sys.stderr.write("".join(err_lines))
+    if proc.returncode != 0:
+        fail("subscriber exited %d (prefix %s)\n%s" % (proc.returncode, prefix, out))
+    compare(expected_dump(fixture), out, "%s subscribe over %s" % (os.path.basename(cmd[0]), url))
+
+
+def run_tool(tool, args, timeout=WAIT_S + 20):
+    return subprocess.run(tool + args, capture_output=True, text=True, timeout=timeout)
+
+
+def parse_csv(text):
+    import csv
+    import io
+    return list(csv.reader(io.StringIO(text)))
+
+
+def run_echo_csv(fixture, url, tool):
+    prefix = unique_prefix("echo_csv")
+    n = 25
+    with Publisher(fixture, url, prefix, "--vary-seq"):
+        # Not a terminal (captured), so CSV even without --csv.
+        r = run_tool(tool, ["echo", "--url", url, "--prefix", prefix, "--count", str(n),
+                            "--duration", str(WAIT_S)])
+    if r.returncode != 0:
+        fail("echo exited %d: %s" % (r.returncode, r.stderr))
+    rows = parse_csv(r.stdout)
+    header, rows = rows[0], rows[1:]
+    if len(rows) != n:
+        fail("expected %d rows, got %d" % (n, len(rows)))
+    col = {name: i for i, name in enumerate(header)}
+    for name in ("utime", "mono_ns", "seq", "run_id", "name_0", "position_5", "velocity_0",
+                 "raw_count_2", "homed_1", "flags_5", "sample_flags"):
+        if name not in col:
+            fail("column %s missing from header %s" % (name, header))
+    if len(header) != 4 + 6 * 6 + 1:
+        fail("joint_state_t has 41 columns, header has %d" % len(header))
+    seqs = [int(row[col["seq"]]) for row in rows]
+    if any(b <= a for a, b in zip(seqs, seqs[1:])):
+        fail("seq not increasing: %s" % seqs)
+    for row in rows:
+        if len(row) != len(header):
+            fail("row has %d values, header %d" % (len(row), len(header)))
+        k = int(row[col["seq"]]) - 4242424242
+        checks = {
+            "utime": str(1700000000123456 + 1000 * k),
+            "run_id": str(-0x0123456789abcdef),
+            "name_3": "elbow_flexion",
+            "position_3": "-2.75",
+            "position_4": "0.1",  # shortest round-trip text
+            "raw_count_2": "123456789012",
+            "homed_1": "0",
+            "flags_2": str(2 | 64),
+            "sample_flags": str(2 | 256),
+        }
+        for name, want in checks.items():
+            if row[col[name]] != want:
+                fail("%s = %r, expected %r (row %s)" % (name, row[col[name]], want, row))
+    print("echo csv: header of %d columns, %d rows, seq %d..%d, values match" % (
+        len(header), len(rows), seqs[0], seqs[-1]))
+
+
+def run_echo_literal(fixture, url, tool):
+    # A full channel name that is not one of the short names: taken literally,
+    # type recognised from the fingerprint, header printed with the first row.
+    prefix = unique_prefix("echo_literal")
+    with Publisher(fixture, url, prefix):
+        r = run_tool(tool, ["echo", "--csv", "--url", url, "--channel", prefix + "EXO_STATUS",
+                            "--count", "3", "--duration", str(WAIT_S)])
+    if r.returncode != 0:
+        fail("echo exited %d: %s" % (r.returncode, r.stderr))
+    rows = parse_csv(r.stdout)
+    if len(rows) != 4:
+        fail("expected header + 3 rows, got %r" % rows)
+    col = {name: i for i, name in enumerate(rows[0])}
+    for row in rows[1:]:
+        if row[col["rig"]] != "sim-rig, bench 2" or \
+                row[col["message"]] != 'joint 3 "elbow_flexion" stale' or \
+                row[col["state"]] != "3" or row[col["homing_4"]] != "2":
+            fail("status row wrong: %s" % row)
+    print("echo literal channel: status_t recognised, CSV quoting round-trips")
+
+
+def run_echo_table(fixture, url, tool):
+    prefix = unique_prefix("echo_table")
+    with Publisher(fixture, url, prefix):
+        pid, fd = pty.fork()
+        if pid == 0:
+            os.execv(tool[0], tool + ["echo", "--url", url, "--prefix", prefix, "--count", "40",
+                                      "--duration", str(WAIT_S)])
+        out = b""
+        deadline = time.monotonic() + WAIT_S + 10
+        while time.monotonic() < deadline:
+            if select.select([fd], [], [], 1)[0]:
+                try:
+                    chunk = os.read(fd, 65536)
+                except OSError:  # EIO: the child closed the terminal
+                    break
+                if not chunk:
+                    break
+                out += chunk
+        _, status = os.waitpid(pid, 0)
+        os.close(fd)
+    text = out.decode("utf-8", "replace")
+    if os.waitstatus_to_exitcode(status) != 0:
+        fail("echo (table) exited %d:\n%s" % (os.waitstatus_to_exitcode(status), text))
+    for want in ("\x1b[?25l", "angle deg", "elbow_flexion", "-157.563", "STALE|HELD",
+                 "DEGRADED", "x   123.40", "valid no (UNHOMED|JOINT_FAULT)", "NEAR-SINGULAR",
+                 "seq 4242424242", "\x1b[?25h"):
+        if want not in text:
+            fail("table output lacks %r:\n%s" % (want, text))
+    print("echo table on a pty: %d bytes, all expected cells present" % len(out))
+
+
+def run_status(fixture, url, tool):
+    prefix = unique_prefix("status")
+    with Publisher(fixture, url, prefix):
+        r = run_tool(tool, ["status", "--url", url, "--prefix", prefix, "--timeout", str(WAIT_S)])
+    if r.returncode != 0:
+        fail("status exited %d: %s" % (r.returncode, r.stderr))
+    print(r.stdout)
+    for want in (prefix + "EXO_STATUS", "rig 'sim-rig, bench 2'", "DEGRADED",
+                 'joint 3 "elbow_flexion" stale', "2023-11-14 22:13:20.123461 UTC",
+                 "overruns 3", "bus WARNING", "board errors 0x40", "synchronised",
+                 "offset -3.2 us", "1250.2", "REJECTED", "STALE", "rx overflows 9"):
+        if want not in r.stdout:
+            fail("status output lacks %r" % want)
+    print("status: all expected fields present")
+
+
+def run_status_timeout(fixture, url, tool):
+    prefix = unique_prefix("status_none")
+    r = run_tool(tool, ["status", "--url", url, "--prefix", prefix, "--timeout", "0.5"])
+    if r.returncode != 1 or "no " + prefix + "EXO_STATUS" not in r.stderr:
+        fail("expected exit 1 and a message, got %d: %s" % (r.returncode, r.stderr))
+    print("status without a publisher: exit 1, %s" % r.stderr.strip())
+
+
+def main(argv):
+    if "--" not in argv:
+        print(__doc__, file=sys.stderr)
+        return 2
+    sep = argv.index("--")
+    head, cmd = argv[1:sep], argv[sep + 1:]
+    mode, fixture = head[0], head[1]
+    big = 0
+    if "--big" in head:
+        i = head.index("--big")
+        big = int(head[i + 1])
+        del head[i:i + 2]
+    if mode == "files":
+        run_files(fixture, cmd)
+    elif mode == "subscribe":
+        run_subscribe(fixture, head[2], cmd, big)
+    else:
+        fn = {"echo-csv": run_echo_csv, "echo-literal": run_echo_literal,
+              "echo-table": run_echo_table, "status": run_status,
+              "status-timeout": run_status_timeout}[mode]
+        fn(fixture, head[2], cmd)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

@@ -1,0 +1,306 @@
+// `exodaq echo`: live values for people. On a terminal a compact table that
+// refreshes in place about ten times a second; otherwise (or with --csv) one CSV
+// line per message of the chosen channel, header first. --count/--duration
+// make it finite for scripts and tests.
+#include <unistd.h>
+
+#include <csignal>
+#include <cstdio>
+#include <deque>
+#include <numbers>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "command.hpp"
+#include "subscriber.hpp"
+
+namespace exodaq::tools {
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+extern "C" void on_stop_signal(int) {
+  g_stop = 1;
+}
+
+void install_stop_handlers() {
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = 0;  // no SA_RESTART: let the wait in lcm_handle_timeout return
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+struct EchoOptions {
+  std::string channel = "joint_state";
+  bool csv = false;
+  std::string prefix;
+  std::string url = sub::kDefaultUrl;
+  int64_t count = 0;      // 0: no limit
+  double duration = 0.0;  // s, 0: no limit
+};
+
+constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+
+// Rate and loss over the last second, measured from seq and the publisher's
+// mono_ns (not from our receive times, which carry network jitter).
+class RateMeter {
+ public:
+  void add(const sub::Stamp& s, int64_t local_mono_ns) {
+    if (!window_.empty() && (s.run_id != window_.back().run_id || s.seq <= window_.back().seq)) {
+      window_.clear();  // daemon restarted or sequence went back
+    }
+    window_.push_back(Sample{s.seq, s.mono_ns, s.run_id, local_mono_ns});
+    while (window_.size() > 2 && local_mono_ns - window_.front().local_ns > 1'000'000'000) {
+      window_.pop_front();
+    }
+  }
+  // Cycles per second of the publisher's clock; nullopt until two samples.
+  std::optional<double> rate_hz() const {
+    if (window_.size() < 2) return std::nullopt;
+    const auto& a = window_.front();
+    const auto& b = window_.back();
+    if (b.mono_ns <= a.mono_ns) return std::nullopt;
+    return static_cast<double>(b.seq - a.seq) * 1e9 / static_cast<double>(b.mono_ns - a.mono_ns);
+  }
+  // Share of the cycles in the window that arrived here.
+  std::optional<double> received_fraction() const {
+    if (window_.size() < 2) return std::nullopt;
+    const int64_t span = window_.back().seq - window_.front().seq + 1;
+    return static_cast<double>(window_.size()) / static_cast<double>(span);
+  }
+
+ private:
+  struct Sample {
+    int64_t seq, mono_ns, run_id, local_ns;
+  };
+  std::deque<Sample> window_;
+};
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+class Table {
+ public:
+  explicit Table(const EchoOptions& o) : opt_(o) {}
+
+  void on(const sub::Received& r, int64_t local_ns) {
+    if (const auto* j = std::get_if<joint_state_t>(&r.msg)) {
+      joint_ = *j;
+      joint_local_ns_ = local_ns;
+      meter_.add(sub::stamp_of(r.msg), local_ns);
+    } else if (const auto* p = std::get_if<palm_pose_t>(&r.msg)) {
+      palm_ = *p;
+    } else if (const auto* s = std::get_if<status_t>(&r.msg)) {
+      status_ = *s;
+      status_local_ns_ = local_ns;
+    } else if (const auto* e = std::get_if<encoder_raw_t>(&r.msg)) {
+      raw_ = *e;
+    }
+  }
+
+  void render(int64_t local_ns) {
+    std::vector<std::string> lines;
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "exodaq echo  %s  prefix '%s'", opt_.url.c_str(),
+                  opt_.prefix.c_str());
+    lines.emplace_back(buf);
+    if (!joint_) {
+      lines.emplace_back("waiting for " + sub::channel_name(opt_.prefix, sub::Kind::kJointState) +
+                         " ...");
+    } else {
+      const auto& j = *joint_;
+      const auto rate = meter_.rate_hz();
+      const auto recv = meter_.received_fraction();
+      const double age_s = static_cast<double>(local_ns - joint_local_ns_) * 1e-9;
+      std::snprintf(
+          buf, sizeof buf, "seq %lld  run %016llx  rate %s Hz  received %s %%  sample %s%s",
+          static_cast<long long>(j.seq), static_cast<unsigned long long>(j.run_id),
+          rate ? fmt("%.1f", *rate).c_str() : "-", recv ? fmt("%.2f", *recv * 100.0).c_str() : "-",
+          sub::sample_flag_names(j.sample_flags).c_str(),
+          age_s > 1.0 ? fmt("  (no data for %.0f s)", age_s).c_str() : "");
+      lines.emplace_back(buf);
+      lines.emplace_back("joint                  angle deg   vel deg/s  homed  flags");
+      for (int i = 0; i < 6; ++i) {
+        std::snprintf(buf, sizeof buf, "%-20.20s %11.3f %11.2f  %-5s  %s", j.name[i].c_str(),
+                      j.position[i] * kRadToDeg, j.velocity[i] * kRadToDeg,
+                      j.homed[i] ? "yes" : "no", sub::joint_flag_names(j.flags[i]).c_str());
+        lines.emplace_back(buf);
+      }
+    }
+    if (palm_) {
+      const auto& p = *palm_;
+      std::snprintf(
+          buf, sizeof buf, "palm mm  x %8.2f  y %8.2f  z %8.2f  valid %s  manip %.3f%s  seq %lld",
+          p.position[0] * 1e3, p.position[1] * 1e3, p.position[2] * 1e3,
+          p.valid ? "yes" : ("no (" + sub::invalid_reason_names(p.invalid_reason) + ")").c_str(),
+          p.shoulder_manipulability, p.near_singular ? " NEAR-SINGULAR" : "",
+          static_cast<long long>(p.seq));
+      lines.emplace_back(buf);
+    } else {
+      lines.emplace_back("palm     waiting for " +
+                         sub::channel_name(opt_.prefix, sub::Kind::kPalmPose));
+    }
+    if (raw_) {
+      const auto& e = *raw_;
+      std::string counts;
+      for (int i = 0; i < 6; ++i) counts += " " + std::to_string(e.count16[i]);
+      std::snprintf(buf, sizeof buf, "raw      present %s  board_seq %d  count16%s",
+                    e.present ? "yes" : "no", e.board_seq, counts.c_str());
+      lines.emplace_back(buf);
+    }
+    if (status_) {
+      const auto& s = *status_;
+      const double age_s = static_cast<double>(local_ns - status_local_ns_) * 1e-9;
+      std::snprintf(buf, sizeof buf, "status   %s  \"%.60s\"  overruns %lld  clock %s  bus %s%s",
+                    std::string(sub::state_name(s.state)).c_str(), s.message.c_str(),
+                    static_cast<long long>(s.overruns),
+                    s.clock_synchronised ? "synced" : "UNSYNCED",
+                    std::string(sub::bus_state_name(s.bus_state)).c_str(),
+                    age_s > 1.0 ? fmt("  (stale %.0f s)", age_s).c_str() : "");
+      lines.emplace_back(buf);
+    } else {
+      lines.emplace_back("status   waiting for " +
+                         sub::channel_name(opt_.prefix, sub::Kind::kStatus));
+    }
+
+    std::string out;
+    if (drawn_lines_ > 0) out += "\x1b[" + std::to_string(drawn_lines_) + "F";  // back to top
+    for (const auto& l : lines) out += l + "\x1b[K\n";
+    for (int i = static_cast<int>(lines.size()); i < drawn_lines_; ++i) out += "\x1b[K\n";
+    drawn_lines_ = std::max(drawn_lines_, static_cast<int>(lines.size()));
+    std::fwrite(out.data(), 1, out.size(), stdout);
+    std::fflush(stdout);
+  }
+
+ private:
+  const EchoOptions& opt_;
+  std::optional<joint_state_t> joint_;
+  std::optional<palm_pose_t> palm_;
+  std::optional<status_t> status_;
+  std::optional<encoder_raw_t> raw_;
+  int64_t joint_local_ns_ = 0;
+  int64_t status_local_ns_ = 0;
+  RateMeter meter_;
+  int drawn_lines_ = 0;
+};
+
+int run_echo(const EchoOptions& opt) {
+  const bool csv = opt.csv || !isatty(STDOUT_FILENO);
+  const auto kind = sub::parse_kind(opt.channel);
+  // A name we do not know is a literal channel; its type comes from the payload.
+  const std::string channel = kind ? sub::channel_name(opt.prefix, *kind) : opt.channel;
+
+  sub::Subscriber subscriber(opt.url);
+  install_stop_handlers();
+
+  int64_t received = 0;  // messages on the chosen channel
+  bool header_done = false;
+  std::optional<sub::Kind> csv_kind = kind;
+  auto print_header = [&](sub::Kind k) {
+    const auto names = sub::field_names(k);
+    std::fprintf(stdout, "%s\n", sub::csv_line(names).c_str());
+    header_done = true;
+  };
+
+  Table table(opt);
+  if (csv) {
+    if (kind) print_header(*kind);
+    subscriber.subscribe(channel, kind, [&](const sub::Received& r) {
+      if (opt.count > 0 && received >= opt.count) return;
+      const auto k = sub::kind_of(r.msg);
+      if (!csv_kind) csv_kind = k;
+      if (k != *csv_kind) return;  // a literal channel carrying mixed types: keep the first
+      if (!header_done) print_header(k);
+      std::vector<std::string> values;
+      for (auto& f : sub::fields(r.msg)) values.push_back(std::move(f.value));
+      const std::string line = sub::csv_line(values) + "\n";
+      std::fwrite(line.data(), 1, line.size(), stdout);
+      ++received;
+    });
+  } else {
+    std::vector<std::string> channels;
+    for (auto k : sub::kAllKinds) channels.push_back(sub::channel_name(opt.prefix, k));
+    if (!kind) channels.push_back(channel);
+    for (const auto& c : channels) {
+      subscriber.subscribe(c, std::nullopt, [&, c](const sub::Received& r) {
+        table.on(r, sub::now_mono_ns());
+        if (c == channel) ++received;
+      });
+    }
+    std::fputs("\x1b[?25l", stdout);  // hide the cursor while redrawing
+  }
+
+  const int64_t start = sub::now_mono_ns();
+  const int64_t end = opt.duration > 0 ? start + static_cast<int64_t>(opt.duration * 1e9) : 0;
+  constexpr int64_t kRefreshNs = 100'000'000;
+  int64_t next_draw = start;
+  int64_t last_flush = start;
+  int rc = kExitOk;
+  while (!g_stop) {
+    if (opt.count > 0 && received >= opt.count) break;
+    int64_t now = sub::now_mono_ns();
+    if (end && now >= end) {
+      if (opt.count > 0 && received < opt.count) {
+        std::fprintf(stderr, "exodaq echo: %lld of %lld messages on %s within %g s\n",
+                     static_cast<long long>(received), static_cast<long long>(opt.count),
+                     channel.c_str(), opt.duration);
+        rc = kExitFailure;
+      }
+      break;
+    }
+    if (!csv && now >= next_draw) {
+      table.render(now);
+      next_draw = now + kRefreshNs;
+    }
+    int64_t wait_ns = csv ? kRefreshNs : next_draw - now;
+    if (end) wait_ns = std::min(wait_ns, end - now);
+    const int timeout_ms = static_cast<int>(std::max<int64_t>(1, (wait_ns + 999'999) / 1'000'000));
+    const int r = subscriber.handle(timeout_ms);
+    if (r < 0 && !g_stop) {
+      std::fprintf(stderr, "exodaq echo: LCM receive failed\n");
+      rc = kExitFailure;
+      break;
+    }
+    now = sub::now_mono_ns();
+    if (csv && (r == 0 || now - last_flush >= kRefreshNs)) {
+      std::fflush(stdout);
+      last_flush = now;
+    }
+  }
+  if (!csv) {
+    table.render(sub::now_mono_ns());
+    std::fputs("\x1b[?25h", stdout);
+  }
+  std::fflush(stdout);
+  return rc;
+}
+
+std::function<int()> setup_echo(CLI::App& app) {
+  auto opt = std::make_shared<EchoOptions>();
+  app.add_option("--channel,-c", opt->channel,
+                 "joint_state, palm_pose, encoder_raw or status (or EXO_* names; the prefix is "
+                 "added), or any other literal channel name")
+      ->capture_default_str();
+  app.add_flag("--csv", opt->csv, "CSV lines even on a terminal (the default when piped)");
+  app.add_option("--prefix,-p", opt->prefix, "channel prefix of the rig (config lcm.prefix)");
+  app.add_option("--url,-u", opt->url, "LCM URL")->capture_default_str();
+  app.add_option("--count,-n", opt->count, "stop after N messages of the channel (0: no limit)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--duration,-d", opt->duration,
+                 "stop after S seconds (0: no limit); with --count, exit 1 if fewer arrived")
+      ->check(CLI::NonNegativeNumber);
+  return [opt] { return run_echo(*opt); };
+}
+
+}  // namespace
+}  // namespace exodaq::tools
+
+EXODAQ_REGISTER_COMMAND(echo, "echo",
+                        "print live joint angles, palm pose and status (table on a terminal, "
+                        "CSV otherwise)",
+                        ::exodaq::tools::setup_echo);

@@ -1,0 +1,118 @@
+// `exodaq status`: waits for one EXO_STATUS message and prints it for people.
+// Exit 0 when one arrived, 1 when none did within --timeout.
+#include <cstdio>
+#include <ctime>
+#include <optional>
+#include <string>
+
+#include "command.hpp"
+#include "subscriber.hpp"
+
+namespace exodaq::tools {
+namespace {
+
+struct StatusOptions {
+  std::string prefix;
+  std::string url = sub::kDefaultUrl;
+  double timeout = 3.0;  // s; status comes at 10 Hz
+};
+
+std::string utc_time(int64_t utime) {
+  const std::time_t t = static_cast<std::time_t>(utime / 1'000'000);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[64];
+  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M:%S", &tm);
+  char out[96];
+  std::snprintf(out, sizeof out, "%s.%06lld UTC", buf,
+                static_cast<long long>(((utime % 1'000'000) + 1'000'000) % 1'000'000));
+  return out;
+}
+
+void print_status(const std::string& channel, const status_t& s, int64_t recv_utime) {
+  auto ll = [](int64_t v) { return static_cast<long long>(v); };
+  std::printf("%s  rig '%s'  source %s  run %016llx\n", channel.c_str(), s.rig.c_str(),
+              s.source.c_str(), static_cast<unsigned long long>(s.run_id));
+  std::printf("state    %s  \"%s\"\n", std::string(sub::state_name(s.state)).c_str(),
+              s.message.c_str());
+  std::printf("time     %s  (received %.3f s later)  seq %lld  cycles %lld\n",
+              utc_time(s.utime).c_str(), static_cast<double>(recv_utime - s.utime) * 1e-6,
+              ll(s.seq), ll(s.cycles));
+  std::printf("loop     window %d cycles  overruns %lld  publish failures %lld\n", s.window_cycles,
+              ll(s.overruns), ll(s.publish_failures));
+  std::printf("         %-9s %10s %10s %10s\n", "us", "p50", "p99", "max");
+  std::printf("         %-9s %10.1f %10.1f %10.1f\n", "period", s.period_p50_us, s.period_p99_us,
+              s.period_max_us);
+  std::printf("         %-9s %10.1f %10.1f %10.1f\n", "lateness", s.lateness_p50_us,
+              s.lateness_p99_us, s.lateness_max_us);
+  std::printf("         %-9s %10.1f %10.1f %10.1f\n", "work", s.work_p50_us, s.work_p99_us,
+              s.work_max_us);
+  std::printf("source   bus %s  board errors 0x%x  frames %lld  bad %lld  missing %lld\n",
+              std::string(sub::bus_state_name(s.bus_state)).c_str(),
+              static_cast<unsigned>(s.board_errors), ll(s.frames), ll(s.bad_frames),
+              ll(s.missing_samples));
+  std::printf(
+      "         seq gaps %lld  duplicates %lld  out of order %lld  bus errors %lld  rx "
+      "overflows %lld\n",
+      ll(s.seq_gaps), ll(s.duplicates), ll(s.out_of_order), ll(s.bus_errors), ll(s.rx_overflows));
+  std::printf(
+      "clock    %s  est error %.1f us  max error %.1f us  offset %.1f us  utime correction "
+      "%.1f us  steps %lld\n",
+      s.clock_synchronised ? "synchronised" : "NOT SYNCHRONISED", s.clock_est_error_us,
+      s.clock_max_error_us, s.clock_offset_us, s.utime_correction_us, ll(s.clock_steps));
+  std::printf("%-20s %-9s %8s %8s %8s %8s  %s\n", "joint", "homing", "glitch", "lost", "stale",
+              "range", "flags (window)");
+  for (int i = 0; i < 6; ++i) {
+    std::printf("%-20s %-9s %8lld %8lld %8lld %8lld  %s\n", s.joint_name[i].c_str(),
+                std::string(sub::homing_name(s.homing[i])).c_str(), ll(s.glitches[i]),
+                ll(s.lost_count_events[i]), ll(s.stale_events[i]), ll(s.out_of_range_events[i]),
+                sub::joint_flag_names(s.joint_flags[i]).c_str());
+  }
+}
+
+int run_status(const StatusOptions& opt) {
+  const std::string channel = sub::channel_name(opt.prefix, sub::Kind::kStatus);
+  sub::Subscriber subscriber(opt.url);
+  std::optional<sub::Received> got;
+  subscriber.subscribe(channel, sub::Kind::kStatus, [&](const sub::Received& r) {
+    if (!got) got = r;
+  });
+  const int64_t end = sub::now_mono_ns() + static_cast<int64_t>(opt.timeout * 1e9);
+  while (!got) {
+    const int64_t left = end - sub::now_mono_ns();
+    if (left <= 0) break;
+    const int r = subscriber.handle(static_cast<int>(std::max<int64_t>(1, left / 1'000'000)));
+    if (r < 0) {
+      std::fprintf(stderr, "exodaq status: LCM receive failed\n");
+      return kExitFailure;
+    }
+  }
+  if (!got) {
+    std::fprintf(stderr,
+                 "exodaq status: no %s message on %s within %g s (is exodaqd running, with "
+                 "this prefix and URL?)\n",
+                 channel.c_str(), opt.url.c_str(), opt.timeout);
+    return kExitFailure;
+  }
+  print_status(got->channel, std::get<status_t>(got->msg), got->recv_utime);
+  std::fflush(stdout);
+  return kExitOk;
+}
+
+std::function<int()> setup_status(CLI::App& app) {
+  auto opt = std::make_shared<StatusOptions>();
+  app.add_option("--prefix,-p", opt->prefix, "channel prefix of the rig (config lcm.prefix)");
+  app.add_option("--url,-u", opt->url, "LCM URL")->capture_default_str();
+  app.add_option("--timeout,-t", opt->timeout, "seconds to wait for a status message")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  return [opt] { return run_status(*opt); };
+}
+
+}  // namespace
+}  // namespace exodaq::tools
+
+EXODAQ_REGISTER_COMMAND(status, "status",
+                        "wait for one EXO_STATUS message and print the service's health (exit 1 "
+                        "if none arrives)",
+                        ::exodaq::tools::setup_status);
