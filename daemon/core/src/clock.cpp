@@ -145,18 +145,22 @@ WallTimeMapper::Result WallTimeMapper::map(std::int64_t mono_ns, std::int64_t ta
     last_generation_ = generation;
     last_target_ = target;
   }
+  // A step (or a large initial error) is slewed out at the step rate until
+  // fully absorbed; samples are flagged while utime is further than the
+  // threshold from the measured wall clock.
   const std::int64_t diff = target - applied_;
-  const bool big = std::llabs(diff) > policy_.step_threshold_ns;
-  stepping_ = big;
-  const double ppm = big ? policy_.step_slew_ppm : policy_.slew_ppm;
+  if (std::llabs(diff) > policy_.step_threshold_ns) stepping_ = true;
+  const double ppm = stepping_ ? policy_.step_slew_ppm : policy_.slew_ppm;
   const auto max_change =
       static_cast<std::int64_t>(std::ceil(static_cast<double>(dt) * ppm * 1e-6));
   applied_ += std::clamp(diff, -max_change, max_change);
+  if (applied_ == target) stepping_ = false;
+  const bool off = std::llabs(target - applied_) > policy_.step_threshold_ns;
   std::int64_t utime_ns = mono_ns + applied_;
   if (utime_ns < last_utime_ns_) utime_ns = last_utime_ns_;  // never backwards
   last_utime_ns_ = utime_ns;
   r.utime_us = utime_ns / 1000;
-  r.stepping = stepping_ || r.new_step;
+  r.stepping = off || r.new_step;
   return r;
 }
 

@@ -1,0 +1,234 @@
+// JointTracker: unwrap, homing (seed 000 eq. 4), faults, velocity.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "exodaq/core/joint_tracker.hpp"
+
+using exodaq::core::HomingState;
+using exodaq::core::JointEvent;
+using exodaq::core::JointTracker;
+using exodaq::core::JointTrackerConfig;
+namespace jf = exodaq::core::joint_flag;
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+constexpr std::int64_t kMs = 1'000'000;
+
+JointTrackerConfig base_config() {
+  JointTrackerConfig c;
+  c.channel = 0;
+  c.direction = 1;
+  c.counts_per_rev = 10000;
+  c.gear_ratio = 1.0;
+  c.offset_rad = 30.0 * kPi / 180.0;
+  c.home_rad = 45.0 * kPi / 180.0;
+  c.lower_rad = -50.5 * kPi / 180.0;
+  c.upper_rad = 140.5 * kPi / 180.0;
+  c.limit_margin_rad = 2.0 * kPi / 180.0;
+  c.max_speed_rad_s = 0.64 * 1.5;
+  c.index_tolerance_counts = 2;
+  c.stale_ns = 20 * kMs;
+  c.fault_hold_ns = 100 * kMs;
+  return c;
+}
+
+// Feeds `count` (unwrapped, any int64) as its low 16 bits.
+JointEvent feed(JointTracker& t, std::int64_t ms, std::int64_t count, bool index = false,
+                std::int64_t index_count = 0) {
+  return t.update(ms * kMs, true, static_cast<std::uint16_t>(count & 0xFFFF), index,
+                  static_cast<std::uint16_t>(index_count & 0xFFFF), false);
+}
+}  // namespace
+
+TEST(JointTracker, UnhomedAngleIsHomePosturePlusTravelSincePowerUp) {
+  JointTracker t(base_config());
+  feed(t, 0, 1000);
+  EXPECT_FALSE(t.reading().homed);
+  EXPECT_TRUE(t.reading().flags & jf::kUnhomed);
+  EXPECT_DOUBLE_EQ(t.reading().position_rad, 45.0 * kPi / 180.0);
+  feed(t, 1, 1001);
+  EXPECT_NEAR(t.reading().position_rad, 45.0 * kPi / 180.0 + 2 * kPi / 10000, 1e-15);
+  EXPECT_EQ(t.reading().count, 1001);
+}
+
+TEST(JointTracker, UnwrapsAcrossThe16BitBoundaryBothWays) {
+  auto c = base_config();
+  c.max_speed_rad_s = 100.0;  // no glitch for the big steps below
+  JointTracker t(c);
+  feed(t, 0, 65530);
+  feed(t, 1, 65540);  // sent as 4
+  EXPECT_EQ(t.reading().count, 65540);
+  feed(t, 2, 65530);
+  feed(t, 3, 65520);
+  EXPECT_EQ(t.reading().count, 65520);
+  // a step of 32767 counts is still unwrapped forwards
+  feed(t, 100, 65520 + 32767);
+  EXPECT_EQ(t.reading().count, 65520 + 32767);
+}
+
+TEST(JointTracker, HomesOnIndexWithDeltaTheta0PlusThetaR) {
+  JointTracker t(base_config());
+  feed(t, 0, 5000);
+  // The joint moves down by 15 deg (4166.67 counts) to the index at 30 deg.
+  const std::int64_t index_count = 5000 - 4167;
+  EXPECT_EQ(feed(t, 1, index_count - 3, true, index_count), JointEvent::kHomed);
+  EXPECT_TRUE(t.reading().homed);
+  EXPECT_EQ(t.reading().homing, HomingState::kHomed);
+  EXPECT_EQ(t.reading().flags & jf::kUnhomed, 0u);
+  // theta = delta_theta0 + theta_R: 3 counts below the index.
+  EXPECT_NEAR(t.reading().position_rad, 30.0 * kPi / 180.0 - 3 * 2 * kPi / 10000, 1e-12);
+  feed(t, 2, index_count + 100);
+  EXPECT_NEAR(t.reading().position_rad, 30.0 * kPi / 180.0 + 100 * 2 * kPi / 10000, 1e-12);
+  EXPECT_EQ(t.counters().homings, 1);
+}
+
+TEST(JointTracker, NegativeDirectionInvertsThetaR) {
+  auto c = base_config();
+  c.direction = -1;
+  JointTracker t(c);
+  feed(t, 0, 0);
+  feed(t, 1, 10, true, 10);
+  feed(t, 2, 0);
+  EXPECT_NEAR(t.reading().position_rad, 30.0 * kPi / 180.0 + 10 * 2 * kPi / 10000, 1e-12);
+}
+
+TEST(JointTracker, GearRatioPicksTheCrossingNearestTheEstimate) {
+  // Belt joint: 2.5 encoder revolutions per joint revolution, the index every 144 deg.
+  auto c = base_config();
+  c.gear_ratio = 2.5;
+  c.offset_rad = 0.0;
+  c.home_rad = 150.0 * kPi / 180.0;  // power-up near the crossing at 144 deg
+  c.lower_rad = -160.0 * kPi / 180.0;
+  c.upper_rad = 160.0 * kPi / 180.0;
+  JointTracker t(c);
+  feed(t, 0, 0);
+  // 6 deg down at the joint = 6/360 * 25000 counts = 416.67 counts.
+  feed(t, 1, -417, true, -417);
+  ASSERT_TRUE(t.reading().homed);
+  EXPECT_NEAR(t.reading().position_rad, 144.0 * kPi / 180.0, 1e-12);
+  // One encoder revolution further down is the crossing at 0 deg.
+  auto cfg2 = c;
+  JointTracker t2(cfg2);
+  feed(t2, 0, 0);
+  feed(t2, 1, -417, true, -417);
+  feed(t2, 2, -417 - 10000);
+  EXPECT_NEAR(t2.reading().position_rad, 0.0, 1e-9);
+}
+
+TEST(JointTracker, RejectsAHomingOutsideTheLimits) {
+  auto c = base_config();
+  c.offset_rad = 170.0 * kPi / 180.0;  // index beyond the 140.5 deg limit + margin
+  c.home_rad = 170.0 * kPi / 180.0;
+  JointTracker t(c);
+  feed(t, 0, 0);
+  EXPECT_EQ(feed(t, 1, 0, true, 0), JointEvent::kHomingRejected);
+  EXPECT_FALSE(t.reading().homed);
+  EXPECT_EQ(t.reading().homing, HomingState::kRejected);
+  EXPECT_TRUE(t.reading().flags & jf::kHomingRejected);
+  EXPECT_EQ(t.counters().rejected_homings, 1);
+}
+
+TEST(JointTracker, IndexDriftBeyondToleranceIsLostCountsAndReHomes) {
+  auto c = base_config();
+  c.max_speed_rad_s = 10000.0;
+  JointTracker t(c);
+  feed(t, 0, 0, true, 0);  // homed at count 0 = 30 deg
+  ASSERT_TRUE(t.reading().homed);
+  // One revolution later the index shows up 5 counts early: 5 counts lost.
+  std::int64_t ms = 1;
+  for (std::int64_t k = 1; k <= 10; ++k) feed(t, ms++, k * 999);
+  EXPECT_EQ(feed(t, ms++, 9995, true, 9995), JointEvent::kLostCounts);
+  EXPECT_EQ(t.counters().lost_count_events, 1);
+  EXPECT_EQ(t.counters().last_index_drift_counts, -5);
+  EXPECT_TRUE(t.reading().flags & jf::kLostCounts);
+  // Re-homed on that index: it is the crossing at 30 deg + 360 deg.
+  EXPECT_NEAR(t.reading().position_rad, (30.0 + 360.0) * kPi / 180.0, 1e-9);
+  // Within tolerance (2 counts) is no event.
+  feed(t, ms++, 9995 + 10000 - 2);
+  EXPECT_EQ(feed(t, ms++, 9995 + 10000 + 2, true, 9995 + 10000 + 2), JointEvent::kNone);
+  EXPECT_EQ(t.counters().lost_count_events, 1);
+  // The flag clears after fault_hold (100 ms).
+  feed(t, ms + 150, 9995 + 10000 + 2);
+  EXPECT_EQ(t.reading().flags & jf::kLostCounts, 0u);
+}
+
+TEST(JointTracker, GlitchIsFlaggedUntilTheNextIndexVerifies) {
+  JointTracker t(base_config());
+  feed(t, 0, 0, true, 0);
+  feed(t, 1, 1);
+  // 1000 counts in 1 ms is 628 rad/s: a glitch.
+  EXPECT_EQ(feed(t, 2, 1001), JointEvent::kGlitch);
+  EXPECT_EQ(t.counters().glitches, 1);
+  for (int ms = 3; ms < 500; ++ms) {
+    feed(t, ms, 1001);
+    ASSERT_TRUE(t.reading().flags & jf::kGlitch) << "cleared at " << ms;
+  }
+  // The index arrives where the glitched count says it should not: corrected.
+  EXPECT_EQ(feed(t, 500, 1001, true, 1000), JointEvent::kLostCounts);
+  EXPECT_EQ(t.reading().flags & jf::kGlitch, 0u);
+}
+
+TEST(JointTracker, MaxPlausibleSpeedIsNotAGlitch) {
+  JointTracker t(base_config());
+  feed(t, 0, 0);
+  // 0.96 rad/s x 1 ms = 1.53 counts per ms: 2 counts pass (quantisation), 3 do not.
+  EXPECT_EQ(feed(t, 1, 2), JointEvent::kNone);
+  EXPECT_EQ(feed(t, 2, 5), JointEvent::kGlitch);
+}
+
+TEST(JointTracker, StaleAfterConfiguredTimeWithoutAFreshCount) {
+  JointTracker t(base_config());
+  feed(t, 0, 0);
+  for (int ms = 1; ms <= 20; ++ms) {
+    EXPECT_EQ(t.update(ms * kMs, false, 0, false, 0, false), JointEvent::kNone);
+    EXPECT_TRUE(t.reading().flags & jf::kHeld);
+    EXPECT_EQ(t.reading().flags & jf::kStale, 0u);
+  }
+  EXPECT_EQ(t.update(21 * kMs, false, 0, false, 0, false), JointEvent::kStale);
+  EXPECT_TRUE(t.reading().flags & jf::kStale);
+  EXPECT_EQ(t.counters().stale_events, 1);
+  feed(t, 22, 0);
+  EXPECT_EQ(t.reading().flags & (jf::kStale | jf::kHeld), 0u);
+}
+
+TEST(JointTracker, OutOfRangeBeyondLimitPlusMargin) {
+  auto c = base_config();
+  c.max_speed_rad_s = 1000.0;
+  JointTracker t(c);
+  feed(t, 0, 0, true, 0);  // 30 deg
+  // 140.5 + 2 = 142.5 deg limit: 112.5 deg above the index is 3125 counts.
+  feed(t, 1, 3124);
+  EXPECT_EQ(t.reading().flags & jf::kOutOfRange, 0u);
+  EXPECT_EQ(feed(t, 2, 3127), JointEvent::kOutOfRange);
+  EXPECT_TRUE(t.reading().flags & jf::kOutOfRange);
+  feed(t, 3, 3130);
+  EXPECT_EQ(t.counters().out_of_range_events, 1);
+  feed(t, 4, 3000);
+  EXPECT_EQ(t.reading().flags & jf::kOutOfRange, 0u);
+}
+
+TEST(JointTracker, VelocityFitOfAConstantSpeedIsExactToQuantisation) {
+  auto c = base_config();
+  c.velocity_window = 21;
+  JointTracker t(c);
+  const double speed = 0.5;  // rad/s
+  const double counts_per_rad = 10000 / (2 * kPi);
+  for (int ms = 0; ms < 100; ++ms) {
+    const auto count = static_cast<std::int64_t>(std::floor(speed * ms * 1e-3 * counts_per_rad));
+    feed(t, ms, count);
+  }
+  // Quantisation noise of a 21-sample fit: q / (dt sqrt(N(N^2-1))) = 6.5e-3 rad/s.
+  EXPECT_NEAR(t.reading().velocity_rad_s, speed, 0.02);
+}
+
+TEST(JointTracker, ReconfigureKeepsHomingAndAppliesNewOffset) {
+  JointTracker t(base_config());
+  feed(t, 0, 0, true, 0);
+  auto c = base_config();
+  c.offset_rad = 31.85 * kPi / 180.0;
+  t.reconfigure(c);
+  feed(t, 1, 0);
+  EXPECT_TRUE(t.reading().homed);
+  EXPECT_NEAR(t.reading().position_rad, 31.85 * kPi / 180.0, 1e-12);
+}
