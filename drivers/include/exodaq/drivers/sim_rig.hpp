@@ -1,0 +1,300 @@
+#pragma once
+// The simulated rig: a deterministic joint-space motion of the macaque arm
+// (SimMotion), six incremental encoders watching it (SimEncoders), and the
+// encoder interface board that turns each sampling cycle into protocol v1 CAN
+// frames (SimBoard). SimRig ties them together per cycle; the `sim` backend
+// (sim_source.hpp) and the board-simulator process both drive a SimRig, so
+// both put exactly the same frames on their bus for the same options.
+//
+// Joint numbering is 0-based here (joint 0 = the paper's joint 1).
+// Sources: seed 000 (Table 3 joint limits, Table 5 task ROM, home posture,
+// eq. 4 θ = Δθ⁰ + θᴿ) and seed 001 (Table III joint speed bounds).
+#include <array>
+#include <cstdint>
+#include <numbers>
+#include <vector>
+
+#include "exodaq/drivers/can_codec.hpp"
+#include "exodaq/drivers/encoder_sample.hpp"
+
+namespace exodaq::drivers::sim {
+
+inline constexpr int kJoints = 6;
+using Vec6 = std::array<double, kJoints>;
+
+constexpr double deg(double d) noexcept {
+  return d * std::numbers::pi / 180.0;
+}
+
+// Seed 000, Sec. 3.1: θ = [π/4, −π/2, π/2, 0, 0, 0].
+inline constexpr Vec6 kHomeRad{deg(45), deg(-90), deg(90), 0.0, 0.0, 0.0};
+// Seed 000, Table 3: mechanical joint limits.
+inline constexpr Vec6 kLowerLimitRad{deg(-50.5), deg(-228.3), deg(-98.1),
+                                     deg(-80),   deg(-88.7),  deg(-80)};
+inline constexpr Vec6 kUpperLimitRad{deg(140.5), deg(48.3), deg(98.1), deg(80), deg(8.1), deg(80)};
+// Seed 000, Table 5: range of motion measured in the reach-grasp-feed task.
+inline constexpr Vec6 kTaskRomRad{deg(30.9), deg(5.1), deg(75.3), deg(39.9), deg(84.7), deg(54.9)};
+// Plausible speed bound per joint. Joints 1-4: seed 001 Table III rows 1-4 in
+// order (0.64, 1.06, 1.80, 5.38 rad/s) as the design notes map them. Joints
+// 5-6 are not in that table; chosen here: joint 5 (elbow) 5.38 rad/s, the
+// elbow row of the same table; joint 6 (pronation/supination) 3.0 rad/s, the
+// whole 55 deg task ROM in ~0.3 s.
+inline constexpr Vec6 kSpeedBoundRadS{0.64, 1.06, 1.80, 5.38, 5.38, 3.0};
+// The speed the simulated motion may reach: 80 % of the smaller of the bound
+// above and the bound under the anatomical reading of Table III (its rows are
+// shoulder ab/adduction, flexion/extension, internal/external rotation and
+// elbow, i.e. this rig's joints 2, 3, 4, 5), so the simulated arm stays
+// plausible whichever mapping a consumer applies.
+inline constexpr Vec6 kMotionSpeedCapRadS{0.8 * 0.64, 0.8 * 0.64, 0.8 * 1.06,
+                                          0.8 * 1.80, 0.8 * 5.38, 0.8 * 3.0};
+
+// Default joint angle of each encoder's index (Δθ⁰ of seed 000 eq. 4): a few
+// degrees from home, on the side that leaves room before the Table 3 limit.
+inline constexpr Vec6 kDefaultIndexAngleRad{deg(45 + 4), deg(-90 - 3), deg(90 - 5),
+                                            deg(6),      deg(-5),      deg(-4)};
+
+// ---------------------------------------------------------------------------
+// Motion
+// ---------------------------------------------------------------------------
+
+struct SimMotionOptions {
+  std::uint64_t seed = 1;  // same seed → same trajectory
+  Vec6 home_rad = kHomeRad;
+  Vec6 lower_limit_rad = kLowerLimitRad;  // nothing ever leaves these
+  Vec6 upper_limit_rad = kUpperLimitRad;
+  // Window each joint's task motion stays in; width = Table 5 ROM by default,
+  // placed around home for a reach in front of the animal. Must hold home.
+  Vec6 task_lower_rad{deg(30.0), deg(-92.5), deg(19.7), deg(-20.0), deg(-84.7), deg(-27.45)};
+  Vec6 task_upper_rad{deg(60.9), deg(-87.4), deg(95.0), deg(19.9), deg(0.0), deg(27.45)};
+  Vec6 speed_cap_rad_s = kMotionSpeedCapRadS;  // peak speed of any segment
+  double min_segment_s = 0.4;                  // shortest move
+  double duration_slack = 0.3;                 // moves last up to 30 % longer than needed (random)
+  double start_hold_s = 0.5;                   // at home before anything moves
+  bool homing = true;                          // sweep every joint through its index first
+  double homing_speed_rad_s = 0.3;             // peak speed of the homing sweeps
+  double homing_overshoot_rad = deg(3.0);      // how far past the index a sweep goes
+  double grasp_hold_s = 0.3;                   // pauses (each + up to 50 % random)
+  double feed_hold_s = 0.5;
+  double home_hold_s = 0.4;
+  int round_trips = 16;  // distinct reach→grasp→feed→return trips; then they repeat
+};
+
+struct JointTruth {
+  Vec6 position{};      // rad
+  Vec6 velocity{};      // rad/s
+  Vec6 acceleration{};  // rad/s²
+};
+
+// Rest-to-rest quintic segments (s = 10τ³ − 15τ⁴ + 6τ⁵): position, velocity
+// and acceleration are continuous everywhere, velocity and acceleration are
+// zero at every waypoint, each joint moves monotonically within a segment (so
+// it never overshoots its waypoints). Peak speed = 1.875 |Δθ| / T.
+//
+// Timeline: hold home for start_hold_s; then (if homing) for each joint in
+// turn home → index ± overshoot → home, only that joint moving; then the
+// round trips, home → reach → grasp → hold → feed → hold → home → hold,
+// repeated forever with period cycle_s(). truth(t) is analytic for any t
+// (t < 0 is home at rest).
+class SimMotion {
+ public:
+  struct Segment {
+    double t0 = 0.0;        // start time, s
+    double duration = 0.0;  // s
+    Vec6 from{};
+    Vec6 to{};  // equal to `from` for a hold
+  };
+
+  // index_angle_rad: each joint's index angle; index_period_rad: 2π/gear, the
+  // joint-space spacing of its index pulses. Throws std::invalid_argument
+  // when the options are inconsistent (home or a waypoint window outside the
+  // limits, an index sweep that would leave them, non-positive speeds).
+  explicit SimMotion(const SimMotionOptions& options = {},
+                     const Vec6& index_angle_rad = kDefaultIndexAngleRad,
+                     const Vec6& index_period_rad = {2 * std::numbers::pi, 2 * std::numbers::pi,
+                                                     2 * std::numbers::pi, 2 * std::numbers::pi,
+                                                     2 * std::numbers::pi, 2 * std::numbers::pi});
+
+  JointTruth truth(double t_s) const noexcept;
+  Vec6 position(double t_s) const noexcept { return truth(t_s).position; }
+
+  double homing_end_s() const noexcept { return homing_end_s_; }  // round trips start here
+  double cycle_s() const noexcept { return cycle_s_; }            // round-trip pattern period
+  // The homing sweep targets and the index angle each sweep crosses.
+  const Vec6& homing_index_rad() const noexcept { return homing_index_; }
+  const std::vector<Segment>& homing_segments() const noexcept { return homing_; }
+  const std::vector<Segment>& trip_segments() const noexcept { return trips_; }  // t0 from 0
+  const SimMotionOptions& options() const noexcept { return options_; }
+
+ private:
+  static JointTruth eval(const Segment& s, double t) noexcept;
+  static const Segment* find(const std::vector<Segment>& segs, double t) noexcept;
+
+  SimMotionOptions options_;
+  Vec6 homing_index_{};
+  std::vector<Segment> homing_;  // absolute times
+  std::vector<Segment> trips_;   // relative to homing_end_s_
+  double homing_end_s_ = 0.0;
+  double cycle_s_ = 0.0;
+};
+
+// ---------------------------------------------------------------------------
+// Encoders
+// ---------------------------------------------------------------------------
+
+struct SimEncoderParams {
+  int channel = 0;                       // board channel 0..5 (a permutation over joints)
+  int direction = 1;                     // +1 or −1: count sign vs joint angle
+  std::int64_t counts_per_rev = 10'000;  // per encoder revolution (2500 CPR × 4)
+  double gear_ratio = 1.0;               // encoder revolutions per joint revolution (> 0)
+  double index_angle_rad = 0.0;          // joint angle of an index pulse (Δθ⁰, seed 000 eq. 4)
+  std::int64_t power_up_count = 0;       // counter value at t = 0, i.e. at home
+};
+
+// Encoder model, integer end to end:
+//   q(θ)     = (θ − θ_index) · cpr · gear / 2π      encoder position, counts (real)
+//   f(θ)     = floor(q(θ))                          whole counts past the index
+//   count(θ) = direction · f(θ) + offset,  offset = power_up_count − direction · f(θ_home)
+// An index pulse sits at every f = n · cpr (θ = θ_index + n · 2π/gear). When f
+// crosses it between two samples (either way), the board latches
+// count_at_index(n) = direction · n · cpr + offset — the count of the first
+// step at or above the boundary, the same value whichever way it is crossed.
+// Only the last crossing of a cycle is latched (one latch register). The wire
+// carries the low 16 bits of both.
+class SimEncoders {
+ public:
+  SimEncoders(const std::array<SimEncoderParams, kJoints>& params, const Vec6& initial_rad);
+
+  double encoder_position(int joint, double theta_rad) const noexcept;  // q(θ)
+  std::int64_t count_at(int joint, double theta_rad) const noexcept;    // count(θ)
+  std::int64_t count_at_index(int joint, std::int64_t n) const noexcept;
+  std::int64_t offset(int joint) const noexcept { return offset_[idx(joint)]; }
+
+  // Samples all joints at new angles: updates counts and this cycle's latches.
+  void update(const Vec6& theta_rad) noexcept;
+  std::int64_t count(int joint) const noexcept { return count_[idx(joint)]; }
+  bool latched(int joint) const noexcept { return latched_[idx(joint)]; }
+  std::int64_t latched_count(int joint) const noexcept { return latched_count_[idx(joint)]; }
+  const SimEncoderParams& params(int joint) const noexcept { return params_[idx(joint)]; }
+
+ private:
+  static std::size_t idx(int j) noexcept { return static_cast<std::size_t>(j); }
+  std::int64_t whole_counts(int joint, double theta_rad) const noexcept;  // f(θ)
+
+  std::array<SimEncoderParams, kJoints> params_;
+  std::array<std::int64_t, kJoints> offset_{};
+  std::array<std::int64_t, kJoints> f_{};
+  std::array<std::int64_t, kJoints> count_{};
+  std::array<bool, kJoints> latched_{};
+  std::array<std::int64_t, kJoints> latched_count_{};
+};
+
+// ---------------------------------------------------------------------------
+// Board
+// ---------------------------------------------------------------------------
+
+struct SimBoardOptions {
+  can::ProtocolIds ids{};
+  int heartbeat_every = 100;  // cycles between heartbeats (100 at 1 kHz = 10 Hz)
+  std::uint8_t first_seq = 0;
+  std::uint8_t state = static_cast<std::uint8_t>(can::BoardState::kFreeRun);
+  std::uint8_t errors = 0;  // board_error bits the heartbeat reports
+  std::uint8_t channel_quadrature_errors = 0;
+};
+
+// What the board's counters hold at one sampling instant, by board channel.
+struct BoardCycle {
+  std::array<std::int64_t, kChannelCount> count{};
+  std::uint32_t index_latched = 0;  // bit c: channel c latched this cycle
+  std::array<std::int64_t, kChannelCount> index_count{};
+};
+
+// Frame order per cycle k: INDEX frames of channels that latched (ascending
+// channel), COUNTS_A, COUNTS_B, then HEARTBEAT when k % heartbeat_every == 0.
+// seq = first_seq + k (mod 256). Stamps are left 0 for the caller.
+class SimBoard {
+ public:
+  static constexpr int kMaxFramesPerCycle = kChannelCount + 3;
+  using Frames = std::array<can::CanFrame, kMaxFramesPerCycle>;
+
+  explicit SimBoard(const SimBoardOptions& options = {}) noexcept : options_(options) {}
+  int make_cycle(std::int64_t k, const BoardCycle& cycle, Frames& out) const noexcept;
+  SimBoardOptions& options() noexcept { return options_; }  // fault injection
+  const SimBoardOptions& options() const noexcept { return options_; }
+
+ private:
+  SimBoardOptions options_;
+};
+
+// ---------------------------------------------------------------------------
+// The whole rig, per sampling cycle
+// ---------------------------------------------------------------------------
+
+inline std::array<SimEncoderParams, kJoints> default_encoders() noexcept {
+  std::array<SimEncoderParams, kJoints> e{};
+  // Power-up counts are arbitrary; these put joints 1 and 3 a few counts from
+  // the 16-bit wrap on the side their homing sweep moves to (1 up, 3 down),
+  // so the wrap is exercised within the first seconds.
+  constexpr std::array<std::int64_t, kJoints> power_up{65500, 32760, 10, 0, -5, 100000};
+  for (int j = 0; j < kJoints; ++j) {
+    const auto i = static_cast<std::size_t>(j);
+    e[i].channel = j;
+    e[i].index_angle_rad = kDefaultIndexAngleRad[i];
+    e[i].power_up_count = power_up[i];
+  }
+  return e;
+}
+
+struct SimOptions {
+  std::uint64_t seed = 1;              // seeds motion, jitter, loss; same seed → same stream
+  std::int64_t period_ns = 1'000'000;  // sampling period (1 kHz)
+  // Sample k is taken at t_k = k · period_ns + jitter_k, jitter_k uniform in
+  // [−jitter_ns, +jitter_ns] from (seed, k); clamped below period_ns / 2.
+  std::int64_t jitter_ns = 0;
+  double loss_percent = 0.0;     // cycles whose frames are all lost on the bus (from (seed, k))
+  double partial_percent = 0.0;  // cycles whose COUNTS_B is lost (only A arrives)
+  std::array<SimEncoderParams, kJoints> encoders = default_encoders();
+  SimMotionOptions motion{};  // motion.seed is replaced by `seed`
+  SimBoardOptions board{};
+  // Sample stamps: mono_ns = start_mono_ns + t_k, wall_ns = mono_ns + wall_offset_ns.
+  // 0 = taken from CLOCK_MONOTONIC / CLOCK_REALTIME − CLOCK_MONOTONIC at start().
+  std::int64_t start_mono_ns = 0;
+  std::int64_t wall_offset_ns = 0;
+};
+
+class SimRig {
+ public:
+  // Throws std::invalid_argument on inconsistent options (see SimMotion; also
+  // channels not a permutation, direction not ±1, cpr or gear not positive,
+  // loss/partial outside [0, 100], invalid protocol IDs).
+  explicit SimRig(const SimOptions& options);
+
+  // Simulates cycle k (call with k = 0, 1, 2, … in order): samples the motion
+  // at t_k, updates the encoders and writes the cycle's frames to `out`,
+  // stamped with t_k on the given time base. Returns how many frames reach
+  // the bus (0 for a lost cycle).
+  int step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_ns,
+           std::int64_t wall_offset_ns) noexcept;
+
+  std::int64_t sample_offset_ns(std::int64_t k) const noexcept;  // t_k in ns
+  double sample_time_s(std::int64_t k) const noexcept {
+    return static_cast<double>(sample_offset_ns(k)) * 1e-9;
+  }
+  bool cycle_lost(std::int64_t k) const noexcept;
+  bool cycle_partial(std::int64_t k) const noexcept;
+
+  const SimMotion& motion() const noexcept { return motion_; }
+  const SimEncoders& encoders() const noexcept { return encoders_; }
+  SimBoard& board() noexcept { return board_; }
+  const SimOptions& options() const noexcept { return options_; }
+
+ private:
+  SimOptions options_;
+  SimMotion motion_;
+  SimEncoders encoders_;
+  SimBoard board_;
+};
+
+// Deterministic hash → uniform [0, 1) (splitmix64), for the sim's randomness.
+double unit_random(std::uint64_t seed, std::uint64_t stream, std::uint64_t k) noexcept;
+
+}  // namespace exodaq::drivers::sim

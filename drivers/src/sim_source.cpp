@@ -1,0 +1,45 @@
+#include "exodaq/drivers/sim_source.hpp"
+
+#include <time.h>
+
+namespace exodaq::drivers {
+namespace {
+
+std::int64_t now_ns(clockid_t clock) noexcept {
+  timespec ts{};
+  clock_gettime(clock, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+BoardDecoderConfig decoder_config(const SimOptions& o) {
+  BoardDecoderConfig c;
+  c.ids = o.board.ids;
+  return c;
+}
+
+}  // namespace
+
+SimSource::SimSource(const SimOptions& options)
+    : options_(options), rig_(options), decoder_(decoder_config(options)) {}
+
+void SimSource::start() {
+  rig_ = sim::SimRig(options_);  // rewind the encoders to power-up
+  decoder_.reset();
+  cycle_ = 0;
+  const std::int64_t mono = now_ns(CLOCK_MONOTONIC);
+  start_mono_ns_ = options_.start_mono_ns != 0 ? options_.start_mono_ns : mono;
+  wall_offset_ns_ =
+      options_.wall_offset_ns != 0 ? options_.wall_offset_ns : now_ns(CLOCK_REALTIME) - mono;
+}
+
+ReadStatus SimSource::read(const CycleTime& /*time*/, EncoderSample& out) noexcept {
+  const std::int64_t k = cycle_++;
+  const int n = rig_.step(k, frames_, start_mono_ns_, wall_offset_ns_);
+  for (int i = 0; i < n; ++i) decoder_.on_frame(frames_[static_cast<std::size_t>(i)]);
+  if (decoder_.poll_sample(out) || decoder_.flush(out)) return ReadStatus::kSample;
+  const std::int64_t mono = start_mono_ns_ + rig_.sample_offset_ns(k);
+  decoder_.make_missing(out, mono, mono + wall_offset_ns_);
+  return ReadStatus::kNoSample;
+}
+
+}  // namespace exodaq::drivers
