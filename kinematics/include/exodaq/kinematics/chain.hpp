@@ -4,6 +4,7 @@
 // heap allocation in the evaluation functions (the hot path).
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
 #include <string>
 #include <vector>
 
@@ -44,8 +45,8 @@ struct JointLimits {
 struct JointDescription {
   std::string name;
   JointLimits limits;
-  DhRow dh;          // used for the DH conventions
-  ScrewAxis screw;   // used for product of exponentials
+  DhRow dh;         // used for the DH conventions
+  ScrewAxis screw;  // used for product of exponentials
 };
 
 // One chain. Frames are numbered as in DH: frame 0 is the base frame O0,
@@ -55,8 +56,18 @@ struct JointDescription {
 class Chain {
  public:
   Chain() = default;
+  // For the DH conventions `tool` maps frame n to the palm. For product of
+  // exponentials `tool` is M: the palm pose in O0 at q = 0 (home_pose()), and the
+  // link frames at q = 0 default to the world-aligned frame at the next joint's
+  // axis point q_{i+1} (frame n = palm). Throws std::invalid_argument for more
+  // than kMaxJoints joints or a zero-length screw axis (start-up code only).
   Chain(Convention convention, std::vector<JointDescription> joints, const Pose& base,
         const Pose& tool);
+  // PoE only: also give the pose of every link frame 1..n in O0 at q = 0
+  // (`link_homes.size()` == n). Used by to_product_of_exponentials() so that
+  // every frame's pose and Jacobian are kept.
+  Chain(Convention convention, std::vector<JointDescription> joints, const Pose& base,
+        const Pose& tool, const std::vector<Pose>& link_homes);
 
   Convention convention() const noexcept { return convention_; }
   int joint_count() const noexcept { return static_cast<int>(joints_.size()); }
@@ -92,6 +103,23 @@ class Chain {
   Pose base_ = Pose::Identity();
   Pose tool_ = Pose::Identity();
   Pose home_ = Pose::Identity();
+
+  // Every convention is compiled into one form: world <- frame i is
+  //   X_1 Rz(q_1) B_1                                   (i = 1)
+  //   X_1 Rz(q_1) C_1 Rz(q_2) C_2 ... Rz(q_i) B_i       (i > 1)
+  // with constant 3x4 transforms; X_1 contains the base and A_1, C_i = B_i A_{i+1},
+  // C_n maps onto the palm, joint offsets are folded into A_i / B_i. Filled by
+  // the constructors.
+  struct Rigid {
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  };
+  std::array<Rigid, kMaxJoints + 1> step_{};  // step_[0] = X_1, step_[i] = C_i
+  std::array<Rigid, kMaxJoints> link_{};      // link_[i - 1] = B_i
+  std::vector<Pose> link_homes_;              // PoE link frames at q = 0 (may be empty)
+  double length_scale_sq_ = 0.0;
+  void compile(const std::vector<Pose>* link_homes);
+  friend struct ChainAccess;  // kinematics/src internals (evaluate_rig)
 };
 
 // sqrt(det(J_S J_S^T)) over the selected rows of J (seed 000 eq. 2). `rows` is

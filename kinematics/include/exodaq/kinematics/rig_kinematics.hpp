@@ -11,7 +11,7 @@ struct RigKinematicsConfig {
   // The normaliser of Fig. 18: the largest sqrt(det(J_o J_o^T)) reachable. For
   // k unit-axis columns in 3-D it is (k/3)^(3/2) (all singular values equal).
   double shoulder_manipulability_max = 1.5396007178390020;  // (4/3)^(3/2)
-  double singularity_threshold = 0.05;                        // on the normalised value
+  double singularity_threshold = 0.05;                      // on the normalised value
 };
 
 struct RigPose {
