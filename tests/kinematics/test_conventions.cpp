@@ -1,0 +1,164 @@
+// The same arm written in standard DH, modified (Craig) DH and product of
+// exponentials gives the same palm pose and palm Jacobian.
+#include <gtest/gtest.h>
+
+#include "exodaq/config/model_file.hpp"
+#include "kin_test_util.hpp"
+
+namespace exodaq::kin {
+namespace {
+
+using test::kPi;
+
+// Seed 000's arm in Craig's form. Regrouping the standard product
+//   Rz(t1) Tz(d1) [Tx(a1) Rx(al1)] Rz(t2) Tz(d2) [Tx(a2) Rx(al2)] ... [Tx(a6) Rx(al6)]
+// row i of the modified table is (a_{i-1}, alpha_{i-1}, d_i), and the last
+// [Tx(a6) Rx(al6)] (identity here, alpha6 = a6 = 0) becomes the tool.
+constexpr const char* kMacaqueModifiedDh = R"(
+name: macaque_exo_mdh
+convention: modified_dh
+angle_unit: deg
+joints:
+  - {name: j1, dh: {a: 0, alpha: 0, d: 0}, limits: [-50.5, 140.5]}
+  - {name: j2, dh: {a: 0, alpha: -90, d: 0}, limits: [-228.3, 48.3]}
+  - {name: j3, dh: {a: 0, alpha: 90, d: 0}, limits: [-98.1, 98.1]}
+  - {name: j4, dh: {a: 0, alpha: -90, d: 0.145}, limits: [-80, 80]}
+  - {name: j5, dh: {a: 0, alpha: 90, d: 0}, limits: [-88.7, 8.1]}
+  - {name: j6, dh: {a: 0, alpha: -90, d: 0.152}, limits: [-80, 80]}
+home_posture: [45, -90, 90, 0, 0, 0]
+)";
+
+// The same arm as screws, read off Table 3 at q = 0: joint axes alternate
+// z0 / y0 through the shoulder centre (joints 1-4) and the elbow (0, L1, 0)
+// (joints 5-6); at q = 0 the palm is at (0, L1 + L2, 0) with R = Rx(-90).
+constexpr const char* kMacaquePoe = R"(
+name: macaque_exo_poe
+convention: poe
+angle_unit: deg
+joints:
+  - {name: j1, screw: {omega: [0, 0, 1], q: [0, 0, 0]}, limits: [-50.5, 140.5]}
+  - {name: j2, screw: {omega: [0, 1, 0], q: [0, 0, 0]}, limits: [-228.3, 48.3]}
+  - {name: j3, screw: {omega: [0, 0, 1], q: [0, 0, 0]}, limits: [-98.1, 98.1]}
+  - {name: j4, screw: {omega: [0, 1, 0], q: [0, 0, 0]}, limits: [-80, 80]}
+  - {name: j5, screw: {omega: [0, 0, 1], q: [0, 0.145, 0]}, limits: [-88.7, 8.1]}
+  - {name: j6, screw: {omega: [0, 1, 0], q: [0, 0.145, 0]}, limits: [-80, 80]}
+home_pose: {translation: [0, 0.297, 0], rpy: [-90, 0, 0]}
+home_posture: [45, -90, 90, 0, 0, 0]
+elbow_frame: 4
+)";
+
+void expect_same_palm(const Chain& a, const Chain& b, const JointVector& q, double tol) {
+  Pose pa, pb;
+  Jacobian Ja, Jb;
+  a.palm_and_jacobian(q, pa, Ja);
+  b.palm_and_jacobian(q, pb, Jb);
+  ASSERT_LT((pa.matrix() - pb.matrix()).cwiseAbs().maxCoeff(), tol) << q.transpose();
+  ASSERT_LT((Ja - Jb).cwiseAbs().maxCoeff(), tol) << q.transpose();
+  ASSERT_LT((a.palm(q).matrix() - pb.matrix()).cwiseAbs().maxCoeff(), tol);
+  ASSERT_LT((b.palm(q).matrix() - pa.matrix()).cwiseAbs().maxCoeff(), tol);
+}
+
+TEST(Conventions, MacaqueInThreeModelFilesAgree) {
+  const auto& sdh = test::macaque();
+  const auto mdh = config::load_model_text(kMacaqueModifiedDh, "mdh.yaml");
+  const auto poe = config::load_model_text(kMacaquePoe, "poe.yaml");
+  EXPECT_EQ(mdh.chain.convention(), Convention::kModifiedDh);
+  EXPECT_EQ(poe.chain.convention(), Convention::kProductOfExponentials);
+  const Chain converted = sdh.chain.to_product_of_exponentials();
+  std::mt19937_64 rng(7);
+  for (int t = 0; t < 2000; ++t) {
+    const JointVector q =
+        t % 2 ? test::random_within_limits(sdh.chain, rng) : test::random_any(6, rng);
+    expect_same_palm(sdh.chain, mdh.chain, q, 1e-12);
+    expect_same_palm(sdh.chain, poe.chain, q, 1e-12);
+    expect_same_palm(sdh.chain, converted, q, 1e-12);
+  }
+}
+
+TEST(Conventions, DhToPoeKeepsEveryFrameAndJacobian) {
+  const auto& sdh = test::macaque();
+  const Chain poe = sdh.chain.to_product_of_exponentials();
+  ASSERT_EQ(poe.convention(), Convention::kProductOfExponentials);
+  // The screws read off the table (see kMacaquePoe).
+  const double L1 = test::kL1;
+  const Eigen::Vector3d w[6] = {{0, 0, 1}, {0, 1, 0}, {0, 0, 1}, {0, 1, 0}, {0, 0, 1}, {0, 1, 0}};
+  const Eigen::Vector3d p[6] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, L1, 0}, {0, L1, 0}};
+  for (int i = 0; i < 6; ++i) {
+    const auto& s = poe.joints()[static_cast<std::size_t>(i)].screw;
+    EXPECT_LT((s.omega - w[i]).norm(), 1e-15) << i;
+    // The point may sit anywhere on the axis: check the moment q x omega.
+    EXPECT_LT((s.q.cross(s.omega) - p[i].cross(w[i])).norm(), 1e-15) << i;
+  }
+  std::mt19937_64 rng(8);
+  for (int t = 0; t < 500; ++t) {
+    const JointVector q = test::random_any(6, rng);
+    for (int f = 0; f <= 7; ++f) {
+      ASSERT_LT((sdh.chain.frame(q, f).matrix() - poe.frame(q, f).matrix()).cwiseAbs().maxCoeff(),
+                1e-12)
+          << "frame " << f;
+      if (f == 0) continue;
+      Jacobian Ja, Jb;
+      sdh.chain.jacobian(q, f, Ja);
+      poe.jacobian(q, f, Jb);
+      ASSERT_LT((Ja - Jb).cwiseAbs().maxCoeff(), 1e-12) << "frame " << f;
+    }
+  }
+}
+
+TEST(Conventions, GeneralTablesWithOffsetsBaseAndTool) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> len(-0.5, 0.5), ang(-kPi, kPi);
+  for (int trial = 0; trial < 50; ++trial) {
+    const int n = 1 + trial % kMaxJoints;
+    std::vector<JointDescription> sj(static_cast<std::size_t>(n));
+    for (auto& j : sj) j.dh = DhRow{len(rng), ang(rng), len(rng), ang(rng)};
+    Pose base = Pose::Identity(), tool = Pose::Identity();
+    base.rotate(Eigen::AngleAxisd(ang(rng), Eigen::Vector3d(0.3, -1, 0.2).normalized()));
+    base.translation() = Eigen::Vector3d(len(rng), len(rng), len(rng));
+    tool.rotate(Eigen::AngleAxisd(ang(rng), Eigen::Vector3d(1, 1, 0.5).normalized()));
+    tool.translation() = Eigen::Vector3d(len(rng), len(rng), len(rng));
+    // Craig's form of the same arm: row i = (a_{i-1}, alpha_{i-1}, d_i, offset_i).
+    std::vector<JointDescription> mj = sj;
+    for (int i = 0; i < n; ++i) {
+      mj[static_cast<std::size_t>(i)].dh.a = i ? sj[static_cast<std::size_t>(i - 1)].dh.a : 0.0;
+      mj[static_cast<std::size_t>(i)].dh.alpha =
+          i ? sj[static_cast<std::size_t>(i - 1)].dh.alpha : 0.0;
+    }
+    const auto& last = sj.back().dh;
+    Pose mtool = Pose::Identity();
+    mtool.translate(Eigen::Vector3d(last.a, 0, 0));
+    mtool.rotate(Eigen::AngleAxisd(last.alpha, Eigen::Vector3d::UnitX()));
+    mtool = mtool * tool;
+    const Chain sdh(Convention::kStandardDh, sj, base, tool);
+    const Chain mdh(Convention::kModifiedDh, mj, base, mtool);
+    const Chain poe = sdh.to_product_of_exponentials();
+    const Chain poe2 = mdh.to_product_of_exponentials();
+    for (int t = 0; t < 40; ++t) {
+      const JointVector q = test::random_any(n, rng);
+      expect_same_palm(sdh, mdh, q, 1e-12);
+      expect_same_palm(sdh, poe, q, 1e-12);
+      expect_same_palm(sdh, poe2, q, 1e-12);
+    }
+  }
+}
+
+TEST(Conventions, PoeJointOffsetShiftsTheZero) {
+  // offset: exp(xi (q + offset)); a planar 1R arm of length 1 about z.
+  const auto m = config::load_model_text(R"(
+name: one
+convention: poe
+angle_unit: deg
+joints:
+  - {name: j, screw: {omega: [0, 0, 2], q: [0, 0, 0]}, offset: 90, limits: [-180, 180]}
+home_pose: {translation: [1, 0, 0]}
+)",
+                                         "one.yaml");
+  JointVector q(1);
+  q << 0.0;
+  EXPECT_LT((m.chain.palm(q).translation() - Eigen::Vector3d(0, 1, 0)).norm(), 1e-15);
+  q << -kPi / 2;
+  EXPECT_LT((m.chain.palm(q).translation() - Eigen::Vector3d(1, 0, 0)).norm(), 1e-15);
+}
+
+}  // namespace
+}  // namespace exodaq::kin

@@ -1,0 +1,180 @@
+// exodaq fk: forward kinematics of a model file at one joint vector.
+//   exodaq fk [--model FILE] (--joints-deg a,b,... | --joints-rad a,b,...) [--json]
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "command.hpp"
+#include "exodaq/config/model_file.hpp"
+#include "exodaq/kinematics/rig_kinematics.hpp"
+
+namespace exodaq::tools {
+namespace {
+
+struct FkOptions {
+  std::string model;
+  std::vector<double> deg;
+  std::vector<double> rad;
+  bool json = false;
+};
+
+std::string json_string(const std::string& s) {
+  std::string out = "\"";
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (c < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", c);
+      out += buf;
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
+}
+
+std::string json_number(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+template <typename V>
+std::string json_array(const V& v) {
+  std::string out = "[";
+  for (Eigen::Index i = 0; i < v.size(); ++i) out += (i ? ", " : "") + json_number(v[i]);
+  return out + "]";
+}
+
+int run_fk(const FkOptions& o) {
+  if (o.deg.empty() == o.rad.empty()) {
+    std::fprintf(stderr, "exodaq fk: give the joints with --joints-deg or --joints-rad\n");
+    return kExitUsage;
+  }
+  const std::string path = o.model.empty() ? config::default_model_path() : o.model;
+  config::KinematicModel model;
+  try {
+    model = config::load_model_file(path);
+  } catch (const config::ConfigError& e) {
+    std::fprintf(stderr, "exodaq fk: %s\n", e.what());
+    return kExitUsage;
+  }
+  const bool in_deg = !o.deg.empty();
+  const std::vector<double>& given = in_deg ? o.deg : o.rad;
+  const int n = model.chain.joint_count();
+  if (static_cast<int>(given.size()) != n) {
+    std::fprintf(stderr, "exodaq fk: model '%s' has %d joints, %zu joint values given\n",
+                 model.name.c_str(), n, given.size());
+    return kExitUsage;
+  }
+  kin::JointVector q(n);
+  for (int i = 0; i < n; ++i) {
+    const double v = given[static_cast<std::size_t>(i)];
+    if (!std::isfinite(v)) {
+      std::fprintf(stderr, "exodaq fk: joint %d value is not a finite number\n", i + 1);
+      return kExitUsage;
+    }
+    q[i] = in_deg ? v * config::kDegToRad : v;
+  }
+  kin::RigPose pose;
+  kin::evaluate_rig(model.chain, model.rig, q, pose);
+
+  // Joints outside their limits are computed anyway, and reported.
+  std::vector<std::string> outside;
+  for (int i = 0; i < n; ++i) {
+    const auto& j = model.chain.joints()[static_cast<std::size_t>(i)];
+    if (q[i] < j.limits.lower || q[i] > j.limits.upper) outside.push_back(j.name);
+  }
+
+  if (o.json) {
+    std::string names = "[";
+    for (int i = 0; i < n; ++i) {
+      names +=
+          (i ? ", " : "") + json_string(model.chain.joints()[static_cast<std::size_t>(i)].name);
+    }
+    names += "]";
+    std::string out_list = "[";
+    for (std::size_t i = 0; i < outside.size(); ++i)
+      out_list += (i ? ", " : "") + json_string(outside[i]);
+    out_list += "]";
+    const auto& R = pose.palm_rotation;
+    std::printf(
+        "{\"model\": %s, \"model_file\": %s, \"joint_names\": %s, \"joints_rad\": %s,\n"
+        " \"palm_position_m\": %s,\n"
+        " \"palm_rotation\": [%s, %s, %s],\n"
+        " \"palm_quaternion_wxyz\": %s,\n"
+        " \"elbow_frame\": %d, \"elbow_position_m\": %s,\n"
+        " \"shoulder_manipulability\": %s, \"shoulder_manipulability_normalised\": %s,\n"
+        " \"near_singular\": %s, \"joints_outside_limits\": %s}\n",
+        json_string(model.name).c_str(), json_string(path).c_str(), names.c_str(),
+        json_array(q).c_str(), json_array(pose.palm_position).c_str(),
+        json_array(Eigen::Vector3d(R.row(0).transpose())).c_str(),
+        json_array(Eigen::Vector3d(R.row(1).transpose())).c_str(),
+        json_array(Eigen::Vector3d(R.row(2).transpose())).c_str(),
+        json_array(pose.palm_quaternion_wxyz).c_str(), model.rig.elbow_frame,
+        json_array(pose.elbow_position).c_str(), json_number(pose.shoulder_manipulability).c_str(),
+        json_number(pose.shoulder_manipulability_normalised).c_str(),
+        pose.near_singular ? "true" : "false", out_list.c_str());
+    return kExitOk;
+  }
+
+  // Print -0.000000 as 0.000000.
+  auto z = [](double v) { return std::abs(v) < 5e-13 ? 0.0 : v; };
+  std::printf("model: %s (%s)\n", model.name.c_str(), path.c_str());
+  std::printf("joints (deg):");
+  for (int i = 0; i < n; ++i) std::printf(" %.4f", z(q[i] / config::kDegToRad));
+  std::printf("\n");
+  const auto& p = pose.palm_position;
+  std::printf("palm position (m):            %10.6f %10.6f %10.6f\n", z(p.x()), z(p.y()), z(p.z()));
+  std::printf("palm rotation:");
+  for (int r = 0; r < 3; ++r) {
+    std::printf(
+        "%s%10.6f %10.6f %10.6f\n", r ? "                              " : "                ",
+        z(pose.palm_rotation(r, 0)), z(pose.palm_rotation(r, 1)), z(pose.palm_rotation(r, 2)));
+  }
+  const auto& qw = pose.palm_quaternion_wxyz;
+  std::printf("palm quaternion (w, x, y, z): %10.6f %10.6f %10.6f %10.6f\n", z(qw[0]), z(qw[1]),
+              z(qw[2]), z(qw[3]));
+  const auto& e = pose.elbow_position;
+  std::printf("elbow position (m):           %10.6f %10.6f %10.6f   (frame %d)\n", z(e.x()),
+              z(e.y()), z(e.z()), model.rig.elbow_frame);
+  std::printf("shoulder manipulability:      %10.6f (normalised %.6f%s)\n",
+              z(pose.shoulder_manipulability), z(pose.shoulder_manipulability_normalised),
+              pose.near_singular ? ", NEAR SINGULAR" : "");
+  if (!outside.empty()) {
+    std::printf("warning: outside joint limits:");
+    for (const auto& s : outside) std::printf(" %s", s.c_str());
+    std::printf("\n");
+  }
+  return kExitOk;
+}
+
+std::function<int()> setup_fk(CLI::App& sub) {
+  auto o = std::make_shared<FkOptions>();
+  sub.add_option("--model", o->model,
+                 "kinematic model file (default: " + config::default_model_path() + ")");
+  auto* deg = sub.add_option("--joints-deg", o->deg, "joint angles in degrees, a,b,c,...")
+                  ->delimiter(',')
+                  ->expected(1, -1);
+  auto* rad = sub.add_option("--joints-rad", o->rad, "joint angles in radians, a,b,c,...")
+                  ->delimiter(',')
+                  ->expected(1, -1);
+  deg->excludes(rad);
+  rad->excludes(deg);
+  sub.add_flag("--json", o->json, "print one JSON object");
+  return [o] { return run_fk(*o); };
+}
+
+}  // namespace
+}  // namespace exodaq::tools
+
+EXODAQ_REGISTER_COMMAND(fk, "fk",
+                        "forward kinematics of a model at one joint vector: palm pose, elbow, "
+                        "shoulder manipulability",
+                        exodaq::tools::setup_fk);
