@@ -117,7 +117,7 @@ TEST(CanCodec, ValidateRejectsCollisionsAndOversizeIds) {
   index_over_counts.index_base = 0x17F;  // 0x17F..0x184 covers COUNTS_A/B
   EXPECT_NE(can::validate(index_over_counts), nullptr);
   can::ProtocolIds too_big;
-  too_big.board = 5;  // heartbeat 0x701 + 0xA0 = 0x7A1 fits; make it not fit
+  too_big.board = 5;  // heartbeat 0x701 + 5 * 0x100 = 0xC01 > 0x7FF
   too_big.board_stride = 0x100;
   EXPECT_NE(can::validate(too_big), nullptr);
 }
