@@ -49,12 +49,6 @@ Rigid rot_x(double angle) {
   return r;
 }
 
-Rigid rot_z(double angle) {
-  Rigid r;
-  r.R = Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  return r;
-}
-
 Rigid trans(double x, double y, double z) {
   Rigid r;
   r.p = Eigen::Vector3d(x, y, z);
@@ -75,18 +69,29 @@ Rigid axis_frame(const Eigen::Vector3d& omega, const Eigen::Vector3d& q) {
   return r;
 }
 
-// T <- T * Rz(angle) (in place), the only angle-dependent factor of a joint.
-inline void apply_rz(Eigen::Matrix3d& R, double c, double s) noexcept {
-  const Eigen::Vector3d x = R.col(0);
-  R.col(0) = c * x + s * R.col(1);
-  R.col(1) = c * R.col(1) - s * x;
+// The joint's rotated x and y axes: columns of R Rz(angle).
+inline void rotate_xy(const Eigen::Matrix3d& R, double angle, Eigen::Vector3d& x,
+                      Eigen::Vector3d& y) noexcept {
+  const double c = std::cos(angle), s = std::sin(angle);  // one sincos call
+  x = c * R.col(0) + s * R.col(1);
+  y = c * R.col(1) - s * R.col(0);
 }
 
-// T <- T * C
-inline void apply(Rigid& T, const Rigid& C) noexcept {
-  T.p.noalias() += T.R * C.p;
-  const Eigen::Matrix3d R = T.R * C.R;
-  T.R = R;
+// T <- T Rz(angle) C, given the rotated axes x, y from rotate_xy (z and p of T
+// are unchanged by Rz).
+inline void advance(Rigid& T, const Eigen::Vector3d& x, const Eigen::Vector3d& y,
+                    const Rigid& C) noexcept {
+  const Eigen::Vector3d z = T.R.col(2);
+  T.p += C.p.x() * x + C.p.y() * y + C.p.z() * z;
+  if (C.rx) {
+    T.R.col(0) = x;
+    T.R.col(1) = C.cb * y + C.sb * z;
+    T.R.col(2) = C.cb * z - C.sb * y;
+  } else {
+    for (int k = 0; k < 3; ++k) {
+      T.R.col(k) = C.R(0, k) * x + C.R(1, k) * y + C.R(2, k) * z;
+    }
+  }
 }
 
 void fill_nan(Pose& p) noexcept {
@@ -138,7 +143,7 @@ void Chain::compile(const std::vector<Pose>* link_homes) {
       for (int i = 0; i < n; ++i) {
         const DhRow& dh = joints_[i].dh;
         // Rz(q + off) Tz(d) Tx(a) Rx(alpha)
-        B[i] = compose(compose(rot_z(dh.theta_offset), trans(dh.a, 0.0, dh.d)), rot_x(dh.alpha));
+        B[i] = compose(trans(dh.a, 0.0, dh.d), rot_x(dh.alpha));
       }
       break;
     case Convention::kModifiedDh:
@@ -146,7 +151,7 @@ void Chain::compile(const std::vector<Pose>* link_homes) {
         const DhRow& dh = joints_[i].dh;
         // Rx(alpha) Tx(a) Rz(q + off) Tz(d)
         A[i] = compose(rot_x(dh.alpha), trans(dh.a, 0.0, 0.0));
-        B[i] = compose(rot_z(dh.theta_offset), trans(0.0, 0.0, dh.d));
+        B[i] = trans(0.0, 0.0, dh.d);
       }
       break;
     case Convention::kProductOfExponentials: {
@@ -172,12 +177,12 @@ void Chain::compile(const std::vector<Pose>* link_homes) {
         }
         s.omega /= norm;
         const Rigid G = axis_frame(s.omega, s.q);
-        // exp([xi] (q + off)) = G Rz(off) Rz(q) G^-1, so the product of exponentials is
-        // G_1 Rz(off_1) Rz(q_1) G_1^-1 G_2 Rz(off_2) Rz(q_2) G_2^-1 ... M. Link frame i
+        // exp([xi] (q + off)) = G Rz(q + off) G^-1, so the product of exponentials is
+        // G_1 Rz(q_1 + off_1) G_1^-1 G_2 Rz(q_2 + off_2) G_2^-1 ... M. Link frame i
         // is that product up to joint i times L_i: B_i = G_i^-1 L_i, and A_i is then
-        // taken from link frame i - 1: A_i = L_{i-1}^-1 G_i Rz(off_i) (L_0 = I).
+        // taken from link frame i - 1: A_i = L_{i-1}^-1 G_i (L_0 = I).
         const Rigid prev = i == 0 ? Rigid{} : inverse(from_pose(homes[i - 1]));
-        A[i] = compose(compose(prev, G), rot_z(joints_[i].dh.theta_offset));
+        A[i] = compose(prev, G);
         B[i] = compose(inverse(G), from_pose(homes[i]));
         poe_scale += (s.q - last_point).squaredNorm();
         last_point = s.q;
@@ -199,9 +204,16 @@ void Chain::compile(const std::vector<Pose>* link_homes) {
     return;
   }
   step_[0] = compose(base, A[0]);
+  offset_ = {};
   for (int i = 0; i < n; ++i) {
+    offset_[i] = joints_[i].dh.theta_offset;
     link_[i] = B[i];
-    step_[i + 1] = compose(B[i], i + 1 < n ? A[i + 1] : palm_from_n);
+    Rigid& C = step_[i + 1];
+    C = compose(B[i], i + 1 < n ? A[i + 1] : palm_from_n);
+    C.rx = C.R(0, 0) == 1.0 && C.R(1, 0) == 0.0 && C.R(2, 0) == 0.0 && C.R(0, 1) == 0.0 &&
+           C.R(0, 2) == 0.0 && C.R(1, 1) == C.R(2, 2) && C.R(2, 1) == -C.R(1, 2);
+    C.cb = C.R(1, 1);
+    C.sb = C.R(2, 1);
   }
 }
 
@@ -210,14 +222,19 @@ void ChainAccess::sweep(const Chain& c, const JointVector& q, const Sweep& s) no
   for (int j = 0; j < s.joints; ++j) {
     if (s.axis) s.axis[j] = T.R.col(2);
     if (s.point) s.point[j] = T.p;
-    const double a = q[j];
-    apply_rz(T.R, std::cos(a), std::sin(a));
+    Eigen::Vector3d x, y;
+    rotate_xy(T.R, q[j] + c.offset_[j], x, y);
     if (j + 1 == s.frame && s.frame_pose) {
       const Rigid& B = c.link_[j];
-      s.frame_pose->p = T.p + T.R * B.p;
-      if (s.frame_rotation) s.frame_pose->R = T.R * B.R;
+      const Eigen::Vector3d& z = T.R.col(2);
+      s.frame_pose->p = T.p + B.p.x() * x + B.p.y() * y + B.p.z() * z;
+      if (s.frame_rotation) {
+        for (int k = 0; k < 3; ++k) {
+          s.frame_pose->R.col(k) = B.R(0, k) * x + B.R(1, k) * y + B.R(2, k) * z;
+        }
+      }
     }
-    apply(T, c.step_[j + 1]);
+    advance(T, x, y, c.step_[j + 1]);
   }
   if (s.palm) *s.palm = T;
 }
@@ -231,9 +248,9 @@ Pose Chain::palm(const JointVector& q) const noexcept {
   }
   Rigid T = step_[0];
   for (int j = 0; j < n; ++j) {
-    const double a = q[j];
-    apply_rz(T.R, std::cos(a), std::sin(a));
-    apply(T, step_[j + 1]);
+    Eigen::Vector3d x, y;
+    rotate_xy(T.R, q[j] + offset_[j], x, y);
+    advance(T, x, y, step_[j + 1]);
   }
   return to_pose(T);
 }
@@ -300,9 +317,9 @@ void Chain::palm_and_jacobian(const JointVector& q, Pose& palm, Jacobian& J) con
   for (int j = 0; j < n; ++j) {
     axis[j] = T.R.col(2);
     point[j] = T.p;
-    const double a = q[j];
-    apply_rz(T.R, std::cos(a), std::sin(a));
-    apply(T, step_[j + 1]);
+    Eigen::Vector3d x, y;
+    rotate_xy(T.R, q[j] + offset_[j], x, y);
+    advance(T, x, y, step_[j + 1]);
   }
   for (int j = 0; j < n; ++j) {
     J.template block<3, 1>(0, j) = axis[j].cross(T.p - point[j]);

@@ -108,14 +108,19 @@ class Chain {
   //   X_1 Rz(q_1) B_1                                   (i = 1)
   //   X_1 Rz(q_1) C_1 Rz(q_2) C_2 ... Rz(q_i) B_i       (i > 1)
   // with constant 3x4 transforms; X_1 contains the base and A_1, C_i = B_i A_{i+1},
-  // C_n maps onto the palm, joint offsets are folded into A_i / B_i. Filled by
-  // the constructors.
+  // C_n maps onto the palm; joint offsets are added to q. Filled by the constructors.
   struct Rigid {
     Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
     Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    // R == Rx(beta) exactly (every DH step): cb = cos(beta), sb = sin(beta); the
+    // evaluation then skips the general 3x3 product.
+    bool rx = false;
+    double cb = 1.0;
+    double sb = 0.0;
   };
   std::array<Rigid, kMaxJoints + 1> step_{};  // step_[0] = X_1, step_[i] = C_i
   std::array<Rigid, kMaxJoints> link_{};      // link_[i - 1] = B_i
+  std::array<double, kMaxJoints> offset_{};   // joint i turns by Rz(q_i + offset_i)
   std::vector<Pose> link_homes_;              // PoE link frames at q = 0 (may be empty)
   double length_scale_sq_ = 0.0;
   void compile(const std::vector<Pose>* link_homes);
