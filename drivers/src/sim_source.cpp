@@ -32,8 +32,13 @@ void SimSource::start() {
       options_.wall_offset_ns != 0 ? options_.wall_offset_ns : now_ns(CLOCK_REALTIME) - mono;
 }
 
-ReadStatus SimSource::read(const CycleTime& /*time*/, EncoderSample& out) noexcept {
-  const std::int64_t k = cycle_++;
+ReadStatus SimSource::read(const CycleTime& time, EncoderSample& out) noexcept {
+  // The simulated board free-runs with the loop's deadlines: cycle k is the
+  // loop's cycle k, so a deadline the loop skipped (overrun) is a board cycle
+  // nobody read, seen by the decoder as a sequence gap, and sample k is always
+  // taken at t_k = k * period. Callers that do not count cycles get 0, 1, 2...
+  const std::int64_t k = time.cycle > cycle_ ? time.cycle : cycle_;
+  cycle_ = k + 1;
   const int n = rig_.step(k, frames_, start_mono_ns_, wall_offset_ns_);
   for (int i = 0; i < n; ++i) decoder_.on_frame(frames_[static_cast<std::size_t>(i)]);
   if (decoder_.poll_sample(out) || decoder_.flush(out)) return ReadStatus::kSample;

@@ -9,6 +9,8 @@
 #include <cstdio>
 #include <cstring>
 #include <random>
+#include <stdexcept>
+#include <vector>
 
 namespace exodaq::core {
 
@@ -49,7 +51,7 @@ Acquisition::Acquisition(AcquisitionConfig config, std::unique_ptr<PipelineConfi
       clock_(clock ? std::move(clock) : make_system_clock()),
       publisher_(std::move(sink), channel_prefix),
       pipeline_(*active_config_),
-      run_id_(new_run_id()) {
+      run_id_(config_.run_id != 0 ? config_.run_id : new_run_id()) {
   time_mapper_.set_policy(config_.clock);
   if (config_.status_every_cycles < 1) config_.status_every_cycles = 1;
 
@@ -78,12 +80,20 @@ void Acquisition::prepare_for_manual_cycles() {
   if (!started_) {
     source_->start();
     clock_monitor_ = std::make_unique<ClockMonitor>(*clock_, config_.clock, clock_shared_);
-    // Warm up every encoder once (lcm-gen's static hash initialisation).
-    encode(ChannelId::kJointState, joint_msg_, 0);
-    encode(ChannelId::kPalmPose, palm_msg_, 0);
-    encode(ChannelId::kEncoderRaw, raw_msg_, 0);
-    encode(ChannelId::kStatus, status_msg_, 0);
-    publisher_.drain();
+    // Run every encoder once into scratch memory before the loop starts:
+    // lcm-gen's hashes are function-local statics initialised on first use.
+    // Also checks that the largest status message fits a slot.
+    std::vector<std::uint8_t> scratch(kMaxMessageBytes);
+    const int cap = static_cast<int>(scratch.size());
+    if (joint_msg_.encode(scratch.data(), 0, cap) < 0 ||
+        palm_msg_.encode(scratch.data(), 0, cap) < 0 ||
+        raw_msg_.encode(scratch.data(), 0, cap) < 0) {
+      throw std::runtime_error("message larger than a publisher slot");
+    }
+    status_msg_.message.assign(255, 'x');
+    const bool status_fits = status_msg_.encode(scratch.data(), 0, cap) >= 0;
+    status_msg_.message.clear();
+    if (!status_fits) throw std::runtime_error("status message larger than a publisher slot");
     started_ = true;
   }
 }
@@ -283,6 +293,11 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
     finished_.store(true, std::memory_order_release);
     return false;
   }
+  if (config_.replay) {
+    // The recording's cycle numbers, gaps from the live run's overruns included.
+    const std::int64_t recorded = source_->recorded_seq();
+    if (recorded >= 0) seq_ = recorded;
+  }
   if (!sample_.present) {
     sample_.mono_ns = deadline_ns;  // the instant the sample was due
   } else {
@@ -430,8 +445,16 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
     const std::int64_t since_sample_ms =
         last_sample_mono_ns_ == 0 ? 0 : (now_mono - last_sample_mono_ns_) / 1'000'000;
     next = next_state(previous, facts_, since_sample_ms, config_.fault_after_ms);
-    if (config_.replay && facts_.samples_present > 0 && next == ServiceState::kFault)
+    if (config_.replay && facts_.samples_present > 0 && next == ServiceState::kFault) {
       next = previous;
+    }
+    // Hysteresis: back to running only after a run of clean windows, so a
+    // marginal fault does not flap the state (and the log) every window.
+    clean_windows_ = next == ServiceState::kRunning ? clean_windows_ + 1 : 0;
+    if (next == ServiceState::kRunning && previous == ServiceState::kDegraded &&
+        clean_windows_ < config_.clean_windows_to_recover) {
+      next = previous;
+    }
   }
   if (next != previous) {
     state_.store(next, std::memory_order_relaxed);

@@ -196,21 +196,7 @@ int run_daemon(const DaemonOptions& options) {
   const AcquisitionConfig acq_config = make_acquisition_config(config);
   std::unique_ptr<Acquisition> acq;
   try {
-    drivers::SourceContext ctx;
-    ctx.period_ns = acq_config.period_ns;
-    ctx.counts_per_rev = config.encoders.counts_per_rev();
-    for (int i = 0; i < kJointCount; ++i) {
-      const auto& e = config.encoders.joints[static_cast<std::size_t>(i)];
-      auto& j = ctx.joints[static_cast<std::size_t>(i)];
-      j.channel = e.channel;
-      j.direction = e.direction;
-      j.gear_ratio = e.gear_ratio;
-      j.index_angle_rad = config.calibration.encoder_offset_rad[static_cast<std::size_t>(i)];
-      j.home_rad = config.model.home_posture[i];
-      j.lower_rad = config.model.chain.joints()[static_cast<std::size_t>(i)].limits.lower;
-      j.upper_rad = config.model.chain.joints()[static_cast<std::size_t>(i)].limits.upper;
-      j.max_speed_rad_s = e.max_speed_rad_s;
-    }
+    const drivers::SourceContext ctx = make_source_context(config);
     acq = std::make_unique<Acquisition>(acq_config, make_pipeline_config(config),
                                         drivers::make_source(config.source, ctx),
                                         make_lcm_sink(config.lcm.url), config.lcm.prefix, nullptr);

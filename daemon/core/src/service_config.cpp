@@ -86,6 +86,12 @@ void parse_source(MapReader m, drivers::SourceOptions& src) {
     if (src.socketcan.read_deadline_us <= 0.0 || src.socketcan.read_deadline_us > 900.0) {
       s->fail_key("read_deadline_us", "source.socketcan.read_deadline_us must be in (0, 900]");
     }
+    src.socketcan.reopen_interval_ms =
+        s->number_or("reopen_interval_ms", src.socketcan.reopen_interval_ms);
+    if (src.socketcan.reopen_interval_ms < 10.0 || src.socketcan.reopen_interval_ms > 60'000.0) {
+      s->fail_key("reopen_interval_ms",
+                  "source.socketcan.reopen_interval_ms must be between 10 and 60000");
+    }
     s->finish();
   }
   if (auto s = m.optional_map("replay")) {
@@ -287,6 +293,26 @@ std::unique_ptr<PipelineConfig> make_pipeline_config(const ServiceConfig& c) {
     t.velocity_window = c.encoders.velocity_window;
   }
   return p;
+}
+
+drivers::SourceContext make_source_context(const ServiceConfig& config) {
+  drivers::SourceContext ctx;
+  ctx.period_ns = static_cast<std::int64_t>(1e9 / config.loop.rate_hz);
+  ctx.counts_per_rev = config.encoders.counts_per_rev();
+  for (int i = 0; i < kJointCount; ++i) {
+    const auto idx = static_cast<std::size_t>(i);
+    const auto& e = config.encoders.joints[idx];
+    auto& j = ctx.joints[idx];
+    j.channel = e.channel;
+    j.direction = e.direction;
+    j.gear_ratio = e.gear_ratio;
+    j.index_angle_rad = config.calibration.encoder_offset_rad[idx];
+    j.home_rad = config.model.home_posture[i];
+    j.lower_rad = config.model.chain.joints()[idx].limits.lower;
+    j.upper_rad = config.model.chain.joints()[idx].limits.upper;
+    j.max_speed_rad_s = e.max_speed_rad_s;
+  }
+  return ctx;
 }
 
 std::string to_yaml(const ServiceConfig& c) {

@@ -27,7 +27,8 @@
 // mono_ns + (CLOCK_REALTIME − CLOCK_MONOTONIC taken once at start()). A lost
 // cycle's kNoSample carries the same stamps for that cycle.
 //
-// The sim paces nothing: one read() is one cycle, whatever CycleTime says.
+// The sim paces nothing: read() simulates board cycle max(time.cycle, next),
+// so it stays locked to the loop's cycle numbers across skipped deadlines.
 #include <cstdint>
 #include <string_view>
 

@@ -19,9 +19,10 @@ struct SimSourceSettings {
 struct SocketCanSettings {
   std::string interface = "can0";
   bool sync_master = true;        // send SYNC every cycle; false: follow a free-running board
-  int board = 0;                  // board number: shifts every protocol ID by board * 0x10
-  int rcvbuf_bytes = 1 << 20;     // SO_RCVBUF, sized for bursts
+  int board = 0;                  // board number: shifts every board-sent ID by board * 0x20
+  int rcvbuf_bytes = 1 << 20;     // SO_RCVBUF(FORCE), sized for bursts
   double read_deadline_us = 400;  // how long a cycle waits for its count frames after SYNC
+  double reopen_interval_ms = 1000;  // interface lost: re-open attempts at most this often
 };
 
 struct ReplaySettings {

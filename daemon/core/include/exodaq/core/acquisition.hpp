@@ -30,12 +30,16 @@ struct AcquisitionConfig {
   int priority = 0;          // SCHED_FIFO priority for the loop thread (0: SCHED_OTHER)
   bool lock_memory = false;  // mlockall(MCL_CURRENT | MCL_FUTURE)
   std::int64_t fault_after_ms = 500;
-  int status_every_cycles = 100;  // 10 Hz at 1 kHz
+  int status_every_cycles = 100;      // 10 Hz at 1 kHz
+  int clean_windows_to_recover = 10;  // degraded -> running after this many clean windows
   bool publish_raw = true;
   // Replay: timestamps come from the recording, the loop is paced by it
   // (speed > 0: that many times real time) or runs flat out (speed <= 0).
   bool replay = false;
   double replay_speed = 1.0;
+  // Replay: a fixed run_id so the same input gives byte-identical output
+  // (exodaq replay passes the recording's). 0: random per start, as live.
+  std::int64_t run_id = 0;
   ClockPolicy clock;
   std::array<std::string, kJointCount> joint_names;
 };
@@ -144,6 +148,7 @@ class Acquisition {
   TimingWindow lateness_window_;
   TimingWindow work_window_;
   WindowFacts facts_;
+  int clean_windows_ = 0;
   std::int64_t window_overruns_start_ = 0;
   std::int64_t first_recorded_mono_ns_ = -1;
   std::int64_t replay_start_mono_ns_ = 0;

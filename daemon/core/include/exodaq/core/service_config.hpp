@@ -81,6 +81,10 @@ ServiceConfig load_service_config_text(const std::string& text, const std::strin
 // encoders + model limits + calibration offsets, chain with the calibration.
 std::unique_ptr<PipelineConfig> make_pipeline_config(const ServiceConfig& config);
 
+// What the source backends need to know about the rig (encoders, model,
+// calibration): the sim puts each index at the calibration's delta_theta0.
+drivers::SourceContext make_source_context(const ServiceConfig& config);
+
 // A readable dump (YAML) of the effective configuration (--print-config).
 std::string to_yaml(const ServiceConfig& config);
 

@@ -1,0 +1,51 @@
+#pragma once
+// Real processes for integration tests: spawn, signal, wait with a timeout,
+// capture output to files.
+#include <sys/types.h>
+
+#include <chrono>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace exodaq::test {
+
+class Process {
+ public:
+  // Starts `argv[0]` with `argv`; stdout/stderr go to the given files (empty:
+  // inherited). `env` entries are added to the current environment.
+  Process(const std::vector<std::string>& argv, const std::string& stdout_file = {},
+          const std::string& stderr_file = {}, const std::map<std::string, std::string>& env = {});
+  ~Process();  // kills (SIGKILL) if still running
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  pid_t pid() const noexcept { return pid_; }
+  bool running();
+  void signal(int sig);
+  // Exit code (or 128 + signal), or nullopt on timeout.
+  std::optional<int> wait(std::chrono::milliseconds timeout);
+
+ private:
+  pid_t pid_ = -1;
+  std::optional<int> status_;
+};
+
+// Runs to completion; returns exit code and the captured stdout + stderr.
+struct RunResult {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+RunResult run(const std::vector<std::string>& argv,
+              std::chrono::milliseconds timeout = std::chrono::seconds(60),
+              const std::map<std::string, std::string>& env = {});
+
+std::string read_file(const std::string& path);
+// A fresh directory under $TMPDIR (or /tmp), removed by nobody: test logs stay for inspection.
+std::string make_temp_dir(const std::string& tag);
+// A per-process-unique LCM channel prefix, so concurrent tests do not hear each other.
+std::string unique_prefix(const std::string& tag);
+
+}  // namespace exodaq::test
