@@ -1,0 +1,119 @@
+// `exodaq calibrate` end to end on generated CSVs (1 kHz encoders, 480 Hz mocap).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "exodaq/config/calibration_file.hpp"
+#include "synthetic.hpp"
+
+namespace exodaq::calibration {
+namespace {
+
+using namespace synth;  // NOLINT
+
+struct Result {
+  int code;
+  std::string output;
+};
+
+Result run(const std::string& args) {
+  const std::string cmd = std::string(EXODAQ_TOOL) + " " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  while (p && fgets(buf, sizeof buf, p)) out += buf;
+  const int status = p ? pclose(p) : -1;
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+class CalibrateCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = ::testing::TempDir() + "/exodaq_calibrate_cli";
+    std::system(("mkdir -p " + dir_).c_str());
+    TrajectoryOptions o;
+    o.marker_rate_hz = 480.0;
+    o.seed = 1;
+    SyntheticData train = make_data(o);
+    // A few occluded markers and an unhomed stretch, as on a real rig.
+    for (std::size_t k = 100; k < train.markers.samples.size(); k += 997) {
+      train.markers.samples[k].present = false;
+    }
+    for (std::size_t k = 300; k < 700; ++k) train.encoders.samples[k].homed_mask = 0x1E;
+    write_encoder_csv(dir_ + "/enc.csv", train.encoders);
+    write_marker_csv(dir_ + "/mocap.csv", train.markers);
+    o.seed = 2;
+    o.marker_rate_hz = 10.0;
+    const SyntheticData val = make_data(o);
+    write_encoder_csv(dir_ + "/enc_val.csv", val.encoders);
+    write_marker_csv(dir_ + "/mocap_val.csv", val.markers);
+  }
+  static std::string dir_;
+};
+std::string CalibrateCli::dir_;
+
+TEST_F(CalibrateCli, WritesACalibrationTheDaemonLoads) {
+  const std::string src = EXODAQ_SOURCE_DIR;
+  const std::string out = dir_ + "/calibration.yaml";
+  const Result r =
+      run("calibrate --encoders " + dir_ + "/enc.csv --markers " + dir_ + "/mocap.csv --model " +
+          src + "/config/models/macaque_exo.yaml --bounds " + src +
+          "/config/calibration/bounds_seed000.yaml --out " + out + " --max-points 400 --validate " +
+          dir_ + "/enc_val.csv," + dir_ + "/mocap_val.csv --plot " + dir_ + "/residuals.png");
+  std::cout << r.output;
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("marker missing"), std::string::npos);
+  EXPECT_NE(r.output.find("unhomed/faulted joints"), std::string::npos);
+  EXPECT_NE(r.output.find("Δθ1⁰ is exactly unobservable"), std::string::npos);
+  EXPECT_NE(r.output.find("Δθ6⁰ is exactly unobservable"), std::string::npos);
+  EXPECT_NE(r.output.find("Cross-validation"), std::string::npos);
+  EXPECT_NE(r.output.find("13.60 -> 1.05"), std::string::npos);
+
+  const config::Calibration c = config::load_calibration_file(out);
+  ASSERT_TRUE(c.provenance.rms_after_m.has_value());
+  EXPECT_LT(*c.provenance.rms_after_m, 1.2 * 0.52e-3);
+  EXPECT_GT(*c.provenance.rms_before_m, 5e-3);
+  EXPECT_EQ(*c.provenance.samples, 400);
+  EXPECT_NE(c.provenance.notes.find("held at prior: dtheta1_deg"), std::string::npos)
+      << c.provenance.notes;
+  const ParamVector truth = table4_results();
+  // Identifiable parameters come back close to the truth (the test of the
+  // library checks them against their standard deviations).
+  EXPECT_NEAR(c.encoder_offset_rad[1], truth[kTheta2], 0.1 * kDeg);
+  EXPECT_NEAR(c.encoder_offset_rad[2], truth[kTheta3], 0.1 * kDeg);
+  EXPECT_NEAR(c.dh.d5, truth[kDd5], 0.5e-3);
+  EXPECT_NEAR(c.marker_offset_m[2], truth[kPz], 1.0e-3);
+  // Held at the prior, not "solved".
+  EXPECT_NEAR(c.encoder_offset_rad[0], 30.7 * kDeg, 1e-12);
+  EXPECT_TRUE(std::ifstream(dir_ + "/residuals_residuals.csv").good());
+}
+
+TEST_F(CalibrateCli, MalformedMocapRowIsReportedWithItsLine) {
+  const std::string src = EXODAQ_SOURCE_DIR;
+  {
+    std::ofstream bad(dir_ + "/bad.csv");
+    bad << "utime_us,x_mm,y_mm,z_mm\n1700000000300000,1,2,3\n1700000000400000,1,2\n";
+  }
+  const Result r =
+      run("calibrate --encoders " + dir_ + "/enc.csv --markers " + dir_ + "/bad.csv --bounds " +
+          src + "/config/calibration/bounds_seed000.yaml --out " + dir_ + "/x.yaml");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find(dir_ + "/bad.csv:3: expected 4 fields, found 3"), std::string::npos)
+      << r.output;
+}
+
+TEST_F(CalibrateCli, TooFewPointsFails) {
+  const std::string src = EXODAQ_SOURCE_DIR;
+  const Result r = run(
+      "calibrate --encoders " + dir_ + "/enc.csv --markers " + dir_ + "/mocap.csv --bounds " + src +
+      "/config/calibration/bounds_seed000.yaml --out " + dir_ + "/y.yaml --max-points 10 --quiet");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("too few calibration points: 10"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace exodaq::calibration
