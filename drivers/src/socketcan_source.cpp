@@ -1,0 +1,275 @@
+#include "exodaq/drivers/socketcan_source.hpp"
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace exodaq::drivers {
+namespace {
+
+constexpr std::uint32_t kEventFlags = sample_flag::kSeqGap | sample_flag::kDuplicate |
+                                      sample_flag::kOutOfOrder | sample_flag::kBusError;
+
+// Errors that mean the interface is gone or down: close and retry later.
+bool is_interface_loss(int err) noexcept {
+  return err == ENETDOWN || err == ENODEV || err == ENXIO || err == ENETUNREACH || err == EBADF;
+}
+
+// `older` is superseded by `newer`: keep its events and index latches.
+void merge_older(const EncoderSample& older, EncoderSample& newer) noexcept {
+  newer.flags |= older.flags & kEventFlags;
+  for (int c = 0; c < kChannelCount; ++c) {
+    const std::uint32_t bit = 1U << c;
+    if ((older.index_latched & bit) == 0 || (newer.index_latched & bit) != 0) continue;
+    newer.index_latched |= bit;
+    if ((older.index_count_valid & bit) != 0 && (newer.index_count_valid & bit) == 0) {
+      newer.index_count_valid |= bit;
+      newer.index_count16[static_cast<std::size_t>(c)] =
+          older.index_count16[static_cast<std::size_t>(c)];
+    }
+  }
+}
+
+}  // namespace
+
+SocketCanSourceConfig socketcan_config_from(const SocketCanSettings& settings,
+                                            const SourceContext& /*context*/) {
+  SocketCanSourceConfig c;
+  c.port.interface = settings.interface;
+  c.port.ids.board = static_cast<std::uint32_t>(settings.board);
+  c.port.receive_sync = !settings.sync_master;
+  c.port.rcvbuf_bytes = settings.rcvbuf_bytes;
+  c.sync_master = settings.sync_master;
+  c.read_deadline_ns = static_cast<std::int64_t>(settings.read_deadline_us * 1000.0);
+  c.reopen_interval_ns = static_cast<std::int64_t>(settings.reopen_interval_ms * 1e6);
+  c.decoder.ids = c.port.ids;
+  return c;
+}
+
+SocketCanSource::SocketCanSource(const SocketCanSourceConfig& config, std::unique_ptr<CanPort> port)
+    : config_(config), port_(std::move(port)), decoder_(config.decoder) {
+  if (!port_) throw std::invalid_argument("socketcan: no CAN port");
+  if (config_.read_deadline_ns <= 0) {
+    throw std::invalid_argument("socketcan: read deadline must be positive");
+  }
+}
+
+void SocketCanSource::start() {
+  decoder_.reset();
+  detail_ = SocketCanDetail{};
+  up_ = false;
+  offset_valid_ = false;
+  offset_width_ns_ = INT64_MAX;
+  newest_complete_mono_ = 0;
+  partial_since_mono_ = 0;
+  measure_offset();
+  last_open_attempt_mono_ = port_->now_mono_ns();
+  const int r = port_->open();
+  if (r == 0) {
+    up_ = true;
+    detail_.open = true;
+    decoder_.set_bus_state(BusState::kUnknown);
+    return;
+  }
+  detail_.last_errno = -r;
+  if (is_interface_loss(-r)) {
+    // Not there yet (or down): run degraded and keep retrying.
+    decoder_.set_bus_state(BusState::kDown);
+    return;
+  }
+  throw std::runtime_error("socketcan: cannot open " + config_.port.interface + ": " +
+                           std::strerror(-r));
+}
+
+void SocketCanSource::stop() noexcept {
+  port_->close();
+  up_ = false;
+  detail_.open = false;
+}
+
+void SocketCanSource::measure_offset() noexcept {
+  // mono, wall, mono: the wall reading belongs to the bracket's midpoint.
+  // CLOCK_REALTIME − CLOCK_MONOTONIC only changes when the wall clock is
+  // stepped (NTP slews both), so the tightest bracket seen is kept until a
+  // reading differs by more than both brackets' widths + 1 µs (a step).
+  const std::int64_t m0 = port_->now_mono_ns();
+  const std::int64_t w = port_->now_wall_ns();
+  const std::int64_t m1 = port_->now_mono_ns();
+  const std::int64_t width = m1 - m0;
+  const std::int64_t offset = w - (m0 + width / 2);
+  if (!offset_valid_ || width <= offset_width_ns_ ||
+      std::llabs(offset - offset_ns_) > offset_width_ns_ + width + 1000) {
+    offset_ns_ = offset;
+    offset_width_ns_ = width;
+    offset_valid_ = true;
+  }
+  detail_.offset_ns = offset_ns_;
+}
+
+bool SocketCanSource::try_open(std::int64_t now_mono) noexcept {
+  if (now_mono - last_open_attempt_mono_ < config_.reopen_interval_ns) return false;
+  last_open_attempt_mono_ = now_mono;
+  ++detail_.reopen_attempts;
+  const int r = port_->open();
+  if (r != 0) {
+    detail_.last_errno = -r;
+    return false;
+  }
+  up_ = true;
+  detail_.open = true;
+  ++detail_.reopens;
+  // Active again with the next frame the decoder accepts.
+  decoder_.set_bus_state(BusState::kUnknown);
+  return true;
+}
+
+void SocketCanSource::go_down(int err) noexcept {
+  port_->close();
+  if (up_) ++detail_.interface_losses;
+  up_ = false;
+  detail_.open = false;
+  detail_.last_errno = err;
+  decoder_.set_bus_state(BusState::kDown);
+  last_open_attempt_mono_ = port_->now_mono_ns();
+}
+
+void SocketCanSource::feed(const can::CanFrame& frame) noexcept {
+  const int queued = decoder_.queued();
+  const std::int64_t overflows = decoder_.detail().queue_overflows;
+  const bool had_partial = decoder_.has_partial();
+  decoder_.on_frame(frame);
+  const bool completed =
+      decoder_.queued() > queued || decoder_.detail().queue_overflows > overflows;
+  if (completed) newest_complete_mono_ = frame.mono_ns;
+  if (decoder_.has_partial() && (!had_partial || completed)) partial_since_mono_ = frame.mono_ns;
+}
+
+bool SocketCanSource::drain() noexcept {
+  for (;;) {
+    CanRxInfo info;
+    const int n = port_->receive(rx_.data(), kBatch, info);
+    if (n < 0) {
+      if (n == -EAGAIN || n == -EWOULDBLOCK || n == -EINTR) return true;
+      if (is_interface_loss(-n)) {
+        go_down(-n);
+        return false;
+      }
+      ++detail_.receive_errors;
+      detail_.last_errno = -n;
+      return true;
+    }
+    if (info.dropped > 0) decoder_.add_rx_overflows(info.dropped);
+    for (int i = 0; i < n; ++i) {
+      can::CanFrame& f = rx_[static_cast<std::size_t>(i)];
+      if (f.wall_ns == 0) {
+        ++detail_.unstamped_frames;
+        f.wall_ns = port_->now_wall_ns();
+      }
+      f.mono_ns = f.wall_ns - offset_ns_;
+      feed(f);
+    }
+    if (n < kBatch) return true;
+  }
+}
+
+bool SocketCanSource::have_current(std::int64_t sync_mono) const noexcept {
+  if (decoder_.queued() == 0) return false;
+  // Sync master: the cycle must have been received after this cycle's SYNC.
+  return !config_.sync_master || newest_complete_mono_ >= sync_mono;
+}
+
+bool SocketCanSource::take_newest(EncoderSample& out) noexcept {
+  if (!decoder_.poll_sample(out)) return false;
+  while (decoder_.poll_sample(scratch_)) {
+    merge_older(out, scratch_);
+    out = scratch_;
+    ++detail_.superseded_samples;
+  }
+  return true;
+}
+
+ReadStatus SocketCanSource::read(const CycleTime& time, EncoderSample& out) noexcept {
+  const std::int64_t start = time.deadline_mono_ns;
+  const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
+  std::int64_t poll_deadline = start + config_.read_deadline_ns;
+  const std::int64_t cycle_cap = start + period - period / 10;
+  if (poll_deadline > cycle_cap) poll_deadline = cycle_cap;
+
+  measure_offset();
+  std::int64_t now = port_->now_mono_ns();
+  if (!up_ && !try_open(now)) {
+    decoder_.make_missing(out, start, start + offset_ns_);
+    return ReadStatus::kNoSample;
+  }
+
+  std::int64_t sync_mono = 0;
+  if (config_.sync_master) {
+    sync_mono = now;
+    const int r = port_->send(can::encode_sync(config_.port.ids));
+    if (r == 0) {
+      ++detail_.sync_sent;
+    } else if (is_interface_loss(-r)) {
+      go_down(-r);
+    } else {
+      ++detail_.sync_send_failures;  // EAGAIN / ENOBUFS: TX queue full, never waited for
+      detail_.last_errno = -r;
+    }
+  }
+
+  while (up_) {
+    if (!drain()) break;
+    if (have_current(sync_mono)) break;
+    now = port_->now_mono_ns();
+    if (now >= poll_deadline) break;
+    const int r = port_->wait_readable(poll_deadline);
+    if (r == 0) {
+      if (!drain()) break;  // a frame may have slipped in at the deadline
+      break;
+    }
+    if (r < 0) {
+      if (r == -EINTR) continue;
+      if (is_interface_loss(-r)) {
+        go_down(-r);
+      } else {
+        ++detail_.receive_errors;
+        detail_.last_errno = -r;
+      }
+      break;
+    }
+  }
+
+  const bool got = take_newest(out);
+  if (decoder_.has_partial()) {
+    bool flush = false;
+    if (config_.sync_master) {
+      // Only one half answered this cycle's SYNC by the deadline.
+      flush = !got || newest_complete_mono_ < sync_mono;
+    } else {
+      // Free-running: the other half is overdue by now.
+      flush = port_->now_mono_ns() - partial_since_mono_ > period / 2;
+    }
+    if (flush) {
+      if (got) {
+        if (decoder_.flush(scratch_)) {
+          merge_older(out, scratch_);
+          out = scratch_;
+          ++detail_.superseded_samples;
+          ++detail_.partial_flushes;
+        }
+        return ReadStatus::kSample;
+      }
+      if (decoder_.flush(out)) {
+        ++detail_.partial_flushes;
+        return ReadStatus::kSample;
+      }
+    }
+  }
+  if (got) return ReadStatus::kSample;
+  decoder_.make_missing(out, start, start + offset_ns_);
+  return ReadStatus::kNoSample;
+}
+
+}  // namespace exodaq::drivers

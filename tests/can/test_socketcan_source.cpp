@@ -1,0 +1,478 @@
+// The SocketCAN backend's frame handling and state machine, driven through the
+// in-memory CanPort (no kernel CAN needed): sync master, deadlines, partial
+// and late cycles, error frames, interface loss and recovery, kernel drops,
+// timestamps, zero allocations in read().
+#include <gtest/gtest.h>
+
+#include <cerrno>
+#include <memory>
+
+#include "alloc_counter.hpp"
+#include "exodaq/drivers/sim_rig.hpp"
+#include "exodaq/drivers/socketcan_source.hpp"
+#include "memory_can_port.hpp"
+
+namespace exodaq::drivers {
+namespace {
+
+using can::CanFrame;
+using test::MemoryCanPort;
+
+constexpr std::int64_t kPeriod = 1'000'000;
+constexpr std::int64_t kT0 = 10'000'000'000;  // first cycle deadline (port clock)
+
+// A board that answers each SYNC with the simulated rig's next cycle: INDEX
+// frames, COUNTS_A after `latency_a`, COUNTS_B after `latency_b`, heartbeats.
+struct Board {
+  explicit Board(MemoryCanPort& port) : rig(sim::SimOptions{}) {
+    port.on_send = [this](const CanFrame& f, MemoryCanPort& p) { on_send(f, p); };
+  }
+  void on_send(const CanFrame& f, MemoryCanPort& p) {
+    if (f.id != 0x080 || silent) return;
+    const std::int64_t k = next++;
+    const int n = rig.step(k, frames, 0, 0);
+    for (int i = 0; i < n; ++i) {
+      const CanFrame& fr = frames[static_cast<std::size_t>(i)];
+      const bool is_b = fr.id == 0x182;
+      if (is_b && drop_b_at == k) continue;
+      std::int64_t at = p.mono + (is_b ? latency_b : latency_a);
+      if (late_at == k) at += late_by;
+      p.push(fr, at);
+      if (is_b) last_b_arrival = at;
+    }
+  }
+  sim::SimRig rig;
+  sim::SimBoard::Frames frames{};
+  std::int64_t next = 0;
+  std::int64_t latency_a = 100'000;
+  std::int64_t latency_b = 150'000;
+  std::int64_t drop_b_at = -1;
+  std::int64_t late_at = -1;
+  std::int64_t late_by = 0;
+  std::int64_t last_b_arrival = 0;
+  bool silent = false;
+};
+
+struct Fixture {
+  explicit Fixture(bool sync_master = true) {
+    auto p = std::make_unique<MemoryCanPort>();
+    port = p.get();
+    SocketCanSettings s;
+    s.interface = "vcan0";
+    s.sync_master = sync_master;
+    cfg = socketcan_config_from(s, SourceContext{});
+    source = std::make_unique<SocketCanSource>(cfg, std::move(p));
+  }
+  ReadStatus cycle(std::int64_t k) {
+    CycleTime t;
+    t.deadline_mono_ns = kT0 + k * kPeriod;
+    t.now_mono_ns = t.deadline_mono_ns;
+    t.period_ns = kPeriod;
+    t.cycle = k;
+    port->advance_to(t.deadline_mono_ns);
+    return source->read(t, sample);
+  }
+  std::int64_t deadline(std::int64_t k) const { return kT0 + k * kPeriod; }
+
+  SocketCanSourceConfig cfg;
+  MemoryCanPort* port = nullptr;
+  std::unique_ptr<SocketCanSource> source;
+  EncoderSample sample;
+};
+
+TEST(SocketCanSource, ConfigFromSettings) {
+  SocketCanSettings s;
+  s.interface = "can1";
+  s.board = 1;
+  s.sync_master = false;
+  s.read_deadline_us = 250;
+  const SocketCanSourceConfig c = socketcan_config_from(s, SourceContext{});
+  EXPECT_EQ(c.port.interface, "can1");
+  EXPECT_EQ(c.port.ids.counts_a_id(), 0x1A1U);
+  EXPECT_EQ(c.decoder.ids.counts_a_id(), 0x1A1U);
+  EXPECT_TRUE(c.port.receive_sync);
+  EXPECT_FALSE(c.sync_master);
+  EXPECT_EQ(c.read_deadline_ns, 250'000);
+  EXPECT_EQ(c.reopen_interval_ns, 1'000'000'000);
+}
+
+TEST(SocketCanSource, SyncMasterNormalCycles) {
+  Fixture f;
+  Board board(*f.port);
+  f.source->start();
+  for (std::int64_t k = 0; k < 300; ++k) {
+    ASSERT_EQ(f.cycle(k), ReadStatus::kSample) << k;
+    ASSERT_TRUE(f.sample.present);
+    EXPECT_EQ(f.sample.board_seq, k % 256);
+    EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, 0U) << k;
+    EXPECT_EQ(f.sample.channel_fresh, 0x3FU);
+    // The sample instant is the kernel receive stamp of COUNTS_B, the frame
+    // that completed the cycle; mono_ns is the same instant on CLOCK_MONOTONIC.
+    EXPECT_EQ(f.sample.wall_ns, board.last_b_arrival + MemoryCanPort::kWallOffsetNs);
+    EXPECT_EQ(f.sample.mono_ns, board.last_b_arrival);
+    // read() returned as soon as the cycle was complete, not at the deadline.
+    EXPECT_EQ(f.port->mono, f.deadline(k) + board.latency_b);
+    // Counts are what the simulated board counted.
+    for (int c = 0; c < 6; ++c) {
+      EXPECT_EQ(f.sample.count16[static_cast<std::size_t>(c)],
+                static_cast<std::uint16_t>(board.rig.encoders().count(c) & 0xFFFF));
+    }
+  }
+  // One SYNC per cycle, DLC 0, ID 0x080.
+  ASSERT_EQ(f.port->sent.size(), 300U);
+  for (const CanFrame& s : f.port->sent) {
+    EXPECT_EQ(s.id, 0x080U);
+    EXPECT_EQ(s.dlc, 0);
+  }
+  const SourceStats st = f.source->stats();
+  EXPECT_EQ(st.seq_gaps, 0);
+  EXPECT_EQ(st.missing_samples, 0);
+  EXPECT_EQ(st.bad_frames, 0);
+  EXPECT_EQ(st.bus_state, BusState::kActive);
+  EXPECT_EQ(f.source->detail().sync_sent, 300);
+  EXPECT_EQ(f.source->detail().superseded_samples, 0);
+}
+
+TEST(SocketCanSource, NoBoardWaitsUntilThePollDeadlineThenMissing) {
+  Fixture f;
+  f.source->start();
+  for (std::int64_t k = 0; k < 5; ++k) {
+    EXPECT_EQ(f.cycle(k), ReadStatus::kNoSample);
+    EXPECT_FALSE(f.sample.present);
+    EXPECT_NE(f.sample.flags & sample_flag::kMissing, 0U);
+    // Waited exactly read_deadline_us after the cycle start.
+    EXPECT_EQ(f.port->mono, f.deadline(k) + 400'000);
+    // A missing sample is stamped with the cycle's deadline.
+    EXPECT_EQ(f.sample.mono_ns, f.deadline(k));
+    EXPECT_EQ(f.sample.wall_ns, f.deadline(k) + MemoryCanPort::kWallOffsetNs);
+  }
+  EXPECT_EQ(f.port->sent.size(), 5U);
+  EXPECT_EQ(f.source->stats().missing_samples, 5);
+}
+
+TEST(SocketCanSource, PollDeadlineNeverPastTheCycle) {
+  Fixture f;
+  SocketCanSettings s;
+  s.read_deadline_us = 900;
+  auto p = std::make_unique<MemoryCanPort>();
+  MemoryCanPort* port = p.get();
+  SocketCanSource src(socketcan_config_from(s, SourceContext{}), std::move(p));
+  src.start();
+  CycleTime t;
+  t.deadline_mono_ns = kT0;
+  t.period_ns = kPeriod;
+  port->advance_to(kT0);
+  EncoderSample out;
+  EXPECT_EQ(src.read(t, out), ReadStatus::kNoSample);
+  EXPECT_EQ(port->mono, kT0 + kPeriod - kPeriod / 10);  // guard of period / 10
+}
+
+TEST(SocketCanSource, PartialCycleFlushedAtTheDeadline) {
+  Fixture f;
+  Board board(*f.port);
+  board.drop_b_at = 5;
+  f.source->start();
+  for (std::int64_t k = 0; k < 10; ++k) {
+    ASSERT_EQ(f.cycle(k), ReadStatus::kSample) << k;
+    if (k == 5) {
+      EXPECT_NE(f.sample.flags & sample_flag::kPartial, 0U);
+      EXPECT_EQ(f.sample.channel_fresh, 0x07U);
+      EXPECT_EQ(f.port->mono, f.deadline(k) + 400'000);  // waited for B until the deadline
+      EXPECT_EQ(f.sample.mono_ns, f.deadline(k) + board.latency_a);  // stamped by A
+    } else {
+      EXPECT_EQ(f.sample.flags & sample_flag::kPartial, 0U) << k;
+      EXPECT_EQ(f.sample.channel_fresh, 0x3FU);
+    }
+  }
+  EXPECT_EQ(f.source->detail().partial_flushes, 1);
+  EXPECT_EQ(f.source->decoder().detail().partial_samples, 1);
+}
+
+TEST(SocketCanSource, LateAnswerIsSupersededAndItsIndexLatchKept) {
+  Fixture f;
+  f.source->start();
+  // Cycle 0: complete on time.
+  const auto counts = [&](int which, std::uint8_t seq, std::uint8_t idx, std::int64_t at) {
+    f.port->push(can::encode_counts(which, {1, 2, 3}, idx, seq), at);
+  };
+  counts(0, 0, 0, f.deadline(0) + 100'000);
+  counts(1, 0, 0, f.deadline(0) + 110'000);
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.board_seq, 0);
+  // Cycle 1: the answer (with an index latch on channel 1) only arrives after
+  // the poll deadline → missing.
+  f.port->push(can::encode_index(1, 777, 1), f.deadline(1) + 500'000);
+  counts(0, 1, 0x02, f.deadline(1) + 500'000);
+  counts(1, 1, 0, f.deadline(1) + 510'000);
+  EXPECT_EQ(f.cycle(1), ReadStatus::kNoSample);
+  // Cycle 2: seq 1 is queued, seq 2 arrives → the newest is delivered, seq 1
+  // superseded, its index latch merged in.
+  counts(0, 2, 0, f.deadline(2) + 100'000);
+  counts(1, 2, 0, f.deadline(2) + 110'000);
+  ASSERT_EQ(f.cycle(2), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.board_seq, 2);
+  EXPECT_NE(f.sample.index_latched & 0x02U, 0U);
+  EXPECT_NE(f.sample.index_count_valid & 0x02U, 0U);
+  EXPECT_EQ(f.sample.index_count16[1], 777);
+  EXPECT_EQ(f.source->detail().superseded_samples, 1);
+  EXPECT_EQ(f.source->stats().seq_gaps, 0);
+  // Sync master waited for the answer to this cycle's SYNC (seq 2), not for seq 1.
+  EXPECT_EQ(f.port->mono, f.deadline(2) + 110'000);
+}
+
+TEST(SocketCanSource, MalformedFramesCountedNotFatal) {
+  Fixture f;
+  Board board(*f.port);
+  f.source->start();
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  CanFrame wrong_dlc = can::encode_counts(0, {1, 2, 3}, 0, 9);
+  wrong_dlc.dlc = 4;
+  CanFrame unknown;
+  unknown.id = 0x185;
+  unknown.dlc = 8;
+  CanFrame rtr;
+  rtr.id = 0x181;
+  rtr.flags = can::frame_flag::kRtr;
+  f.port->push(wrong_dlc, f.deadline(1));
+  f.port->push(unknown, f.deadline(1));
+  f.port->push(rtr, f.deadline(1));
+  ASSERT_EQ(f.cycle(1), ReadStatus::kSample);
+  EXPECT_EQ(f.source->stats().bad_frames, 3);
+  EXPECT_EQ(f.source->decoder().detail().rejected[static_cast<int>(can::Reject::kWrongDlc)], 1);
+  EXPECT_EQ(f.source->decoder().detail().rejected[static_cast<int>(can::Reject::kUnknownId)], 1);
+  EXPECT_EQ(f.source->decoder().detail().rejected[static_cast<int>(can::Reject::kRtr)], 1);
+  EXPECT_EQ(f.sample.board_seq, 1);
+}
+
+TEST(SocketCanSource, ErrorFramesDriveBusStateAndBusErrors) {
+  Fixture f;
+  Board board(*f.port);
+  f.source->start();
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kActive);
+
+  can::ErrorPayload warn;
+  warn.classes = can::err_class::kCrtl;
+  warn.controller = can::err_crtl::kRxWarning;
+  f.port->push(can::encode_error(warn), f.deadline(1));
+  ASSERT_EQ(f.cycle(1), ReadStatus::kSample);
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kWarning);
+  EXPECT_NE(f.sample.flags & sample_flag::kBusError, 0U);  // event flag on this sample
+  ASSERT_EQ(f.cycle(2), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.flags & sample_flag::kBusError, 0U);  // warning is not a level flag
+
+  can::ErrorPayload off;
+  off.classes = can::err_class::kBusOff;
+  f.port->push(can::encode_error(off), f.deadline(3));
+  ASSERT_EQ(f.cycle(3), ReadStatus::kSample);
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kOff);
+  ASSERT_EQ(f.cycle(4), ReadStatus::kSample);
+  EXPECT_NE(f.sample.flags & sample_flag::kBusError, 0U);  // level flag while bus-off
+
+  can::ErrorPayload restarted;
+  restarted.classes = can::err_class::kRestarted;
+  f.port->push(can::encode_error(restarted), f.deadline(5));
+  ASSERT_EQ(f.cycle(5), ReadStatus::kSample);
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kActive);
+  ASSERT_EQ(f.cycle(6), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.flags & sample_flag::kBusError, 0U);
+  EXPECT_EQ(f.source->stats().bus_errors, 3);
+}
+
+TEST(SocketCanSource, InterfaceDownDegradesThenRecovers) {
+  Fixture f;
+  Board board(*f.port);
+  f.source->start();
+  std::int64_t k = 0;
+  for (; k < 10; ++k) ASSERT_EQ(f.cycle(k), ReadStatus::kSample);
+  const int opens = f.port->open_calls;
+
+  // ip link set vcan0 down: the socket reports ENETDOWN once.
+  f.port->take_down();
+  f.port->send_error = ENETDOWN;
+  ASSERT_EQ(f.cycle(k++), ReadStatus::kNoSample);
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kDown);
+  EXPECT_NE(f.sample.flags & sample_flag::kBusError, 0U);
+  EXPECT_NE(f.sample.flags & sample_flag::kMissing, 0U);
+  EXPECT_EQ(f.source->detail().interface_losses, 1);
+  EXPECT_FALSE(f.port->is_open());
+
+  // While down: missing samples, no re-open more often than once a second.
+  const std::int64_t lost_at = f.port->mono;
+  for (; f.deadline(k) < lost_at + 2'500'000'000; ++k) {
+    ASSERT_EQ(f.cycle(k), ReadStatus::kNoSample);
+    EXPECT_NE(f.sample.flags & sample_flag::kBusError, 0U);
+    // Down: read() returns at once (no waiting on a closed socket).
+    EXPECT_EQ(f.port->mono, f.deadline(k));
+  }
+  EXPECT_EQ(f.port->open_calls - opens, 2);  // at +1 s and +2 s
+  EXPECT_EQ(f.source->detail().reopen_attempts, 2);
+  EXPECT_EQ(f.source->detail().last_errno, ENETDOWN);
+
+  // ip link set vcan0 up: recovered at the next attempt (≤ 1 s later).
+  f.port->bring_up();
+  f.port->send_error = 0;
+  std::int64_t recovered = -1;
+  for (int i = 0; i < 1100; ++i, ++k) {
+    if (f.cycle(k) == ReadStatus::kSample) {
+      recovered = k;
+      break;
+    }
+  }
+  ASSERT_GE(recovered, 0);
+  EXPECT_EQ(f.source->detail().reopens, 1);
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kActive);
+  EXPECT_EQ(f.sample.flags & sample_flag::kBusError, 0U);
+  for (int i = 0; i < 10; ++i) ASSERT_EQ(f.cycle(++k), ReadStatus::kSample);
+}
+
+TEST(SocketCanSource, InterfaceRemovedAndRecreated) {
+  Fixture f;
+  Board board(*f.port);
+  f.source->start();
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  f.port->remove();
+  f.port->send_error = ENODEV;
+  ASSERT_EQ(f.cycle(1), ReadStatus::kNoSample);
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kDown);
+  std::int64_t k = 2;
+  for (; k < 1200; ++k) f.cycle(k);  // an attempt at +1 s fails with ENODEV
+  EXPECT_EQ(f.source->detail().last_errno, ENODEV);
+  f.port->bring_up();
+  f.port->send_error = 0;
+  for (; k < 2300 && f.cycle(k) != ReadStatus::kSample; ++k) {
+  }
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kActive);
+  EXPECT_EQ(f.source->detail().reopens, 1);
+}
+
+TEST(SocketCanSource, StartsDegradedWhenTheInterfaceIsMissing) {
+  Fixture f;
+  f.port->exists = false;
+  f.port->up = false;
+  EXPECT_NO_THROW(f.source->start());
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kDown);
+  EXPECT_EQ(f.cycle(0), ReadStatus::kNoSample);
+  EXPECT_TRUE(f.port->sent.empty());
+}
+
+TEST(SocketCanSource, StartThrowsWithoutCanSupport) {
+  Fixture f;
+  f.port->open_error = EAFNOSUPPORT;
+  EXPECT_THROW(f.source->start(), std::runtime_error);
+}
+
+TEST(SocketCanSource, KernelDropsCountedAsRxOverflows) {
+  Fixture f;
+  Board board(*f.port);
+  f.source->start();
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  f.port->pending_drops = 5;
+  ASSERT_EQ(f.cycle(1), ReadStatus::kSample);
+  f.port->pending_drops = 2;
+  ASSERT_EQ(f.cycle(2), ReadStatus::kSample);
+  EXPECT_EQ(f.source->stats().rx_overflows, 7);
+}
+
+TEST(SocketCanSource, SyncSendQueueFullIsCountedNotBlocking) {
+  Fixture f;
+  Board board(*f.port);
+  f.source->start();
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  f.port->send_error = ENOBUFS;
+  EXPECT_EQ(f.cycle(1), ReadStatus::kNoSample);
+  f.port->send_error = EAGAIN;
+  EXPECT_EQ(f.cycle(2), ReadStatus::kNoSample);
+  f.port->send_error = 0;
+  EXPECT_EQ(f.cycle(3), ReadStatus::kSample);
+  EXPECT_EQ(f.source->detail().sync_send_failures, 2);
+  EXPECT_EQ(f.source->detail().interface_losses, 0);
+  EXPECT_EQ(f.source->stats().bus_state, BusState::kActive);
+}
+
+TEST(SocketCanSource, FreeRunningBoardFollowed) {
+  Fixture f(false);
+  f.source->start();
+  sim::SimRig rig{sim::SimOptions{}};
+  sim::SimBoard::Frames frames{};
+  // The board samples at its own 1 kHz, 700 µs after each of our deadlines:
+  // later than the poll deadline, so each read() delivers the previous
+  // board cycle at once without waiting.
+  for (std::int64_t k = 0; k < 100; ++k) {
+    const int n = rig.step(k, frames, 0, 0);
+    for (int i = 0; i < n; ++i) {
+      f.port->push(frames[static_cast<std::size_t>(i)], f.deadline(k) + 700'000 + i * 1000);
+    }
+  }
+  EXPECT_EQ(f.cycle(0), ReadStatus::kNoSample);
+  for (std::int64_t k = 1; k < 100; ++k) {
+    ASSERT_EQ(f.cycle(k), ReadStatus::kSample) << k;
+    EXPECT_EQ(f.sample.board_seq, k - 1);
+    EXPECT_EQ(f.port->mono, f.deadline(k));  // no waiting
+    EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, 0U);
+  }
+  EXPECT_TRUE(f.port->sent.empty());  // not sync master: no SYNC
+  EXPECT_EQ(f.source->stats().seq_gaps, 0);
+}
+
+TEST(SocketCanSource, FreeRunningBoardEarlyInTheCycle) {
+  Fixture f(false);
+  f.source->start();
+  sim::SimRig rig{sim::SimOptions{}};
+  sim::SimBoard::Frames frames{};
+  for (std::int64_t k = 0; k < 50; ++k) {
+    const int n = rig.step(k, frames, 0, 0);
+    for (int i = 0; i < n; ++i) {
+      f.port->push(frames[static_cast<std::size_t>(i)], f.deadline(k) + 200'000 + i * 1000);
+    }
+  }
+  for (std::int64_t k = 0; k < 50; ++k) {
+    ASSERT_EQ(f.cycle(k), ReadStatus::kSample) << k;
+    EXPECT_EQ(f.sample.board_seq, k);  // waited for it within the cycle
+  }
+}
+
+TEST(SocketCanSource, UnstampedFramesStampedAtReadTime) {
+  Fixture f;
+  Board board(*f.port);
+  f.port->stamp = false;
+  f.source->start();
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.mono_ns, f.deadline(0) + board.latency_b);
+  EXPECT_GE(f.source->detail().unstamped_frames, 2);
+}
+
+TEST(SocketCanSource, ReadAllocatesNothing) {
+  Fixture f;
+  Board board(*f.port);
+  board.drop_b_at = 7;
+  board.late_at = 20;
+  board.late_by = 900'000;
+  f.source->start();
+  std::int64_t k = 0;
+  for (; k < 5; ++k) f.cycle(k);  // warm-up
+  test::AllocationScope scope;
+  for (; k < 2000; ++k) {
+    if (k == 100) {
+      can::ErrorPayload off;
+      off.classes = can::err_class::kBusOff;
+      f.port->push(can::encode_error(off), f.deadline(k));
+    }
+    if (k == 200) {
+      f.port->take_down();
+      f.port->send_error = ENETDOWN;
+    }
+    if (k == 700) {
+      f.port->bring_up();
+      f.port->send_error = 0;
+    }
+    if (k == 1500) f.port->pending_drops = 3;
+    f.cycle(k);
+  }
+  EXPECT_EQ(scope.count(), 0U);
+  EXPECT_EQ(f.source->detail().reopens, 1);
+  EXPECT_EQ(f.source->stats().rx_overflows, 3);
+}
+
+}  // namespace
+}  // namespace exodaq::drivers
