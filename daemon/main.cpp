@@ -27,6 +27,12 @@ int main(int argc, char** argv) {
   app.add_flag("--print-config", print_config, "print the effective configuration and exit");
   app.add_option("--log-level", log_level,
                  "trace|debug|info|warn|error|critical|off (overrides config and SPDLOG_LEVEL)");
+  double duration_s = 0.0;
+  std::string lateness_log;
+  app.add_option("--duration", duration_s,
+                 "stop by itself after this many seconds (default: run until SIGTERM/SIGINT)");
+  app.add_option("--lateness-log", lateness_log,
+                 "benchmarks: write each cycle's wake-up lateness in ns to FILE at exit");
   app.set_version_flag(
       "--version", std::string("exodaqd ") + exodaq::kVersion + " (" + exodaq::kGitDescribe + ")");
   try {
@@ -43,5 +49,7 @@ int main(int argc, char** argv) {
   options.log_level = log_level;
   options.check_only = check_only;
   options.print_config = print_config;
+  options.duration_s = duration_s;
+  options.lateness_log = lateness_log;
   return exodaq::core::run_daemon(options);
 }

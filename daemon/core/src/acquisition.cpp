@@ -5,7 +5,9 @@
 #include <sys/mman.h>
 #include <time.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <climits>
 #include <cstdio>
 #include <cstring>
 #include <random>
@@ -93,6 +95,9 @@ void Acquisition::prepare_for_manual_cycles() {
     status_msg_.message.assign(255, 'x');
     const bool status_fits = status_msg_.encode(scratch.data(), 0, cap) >= 0;
     status_msg_.message.clear();
+    if (config_.record_lateness_cycles > 0) {
+      lateness_record_.reserve(static_cast<std::size_t>(config_.record_lateness_cycles));
+    }
     if (!status_fits) throw std::runtime_error("status message larger than a publisher slot");
     started_ = true;
   }
@@ -374,6 +379,11 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   if (last_wake_ns_ != 0) period_window_.add(wake_ns - last_wake_ns_);
   last_wake_ns_ = wake_ns;
   lateness_window_.add(wake_ns - deadline_ns);
+  if (lateness_record_.size() < lateness_record_.capacity()) {
+    // Within the capacity reserved at start: no allocation.
+    lateness_record_.push_back(
+        static_cast<std::int32_t>(std::min<std::int64_t>(wake_ns - deadline_ns, INT32_MAX)));
+  }
 
   ++seq_;
   cycles_.fetch_add(1, std::memory_order_relaxed);

@@ -193,7 +193,12 @@ int run_daemon(const DaemonOptions& options) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   auto logger = make_logger(config.logging, options.log_level);
-  const AcquisitionConfig acq_config = make_acquisition_config(config);
+  AcquisitionConfig acq_config = make_acquisition_config(config);
+  if (!options.lateness_log.empty()) {
+    const double seconds = options.duration_s > 0 ? options.duration_s + 5.0 : 3600.0;
+    acq_config.record_lateness_cycles = static_cast<std::int64_t>(seconds * config.loop.rate_hz);
+  }
+  const std::int64_t started_ns = mono_now();
   std::unique_ptr<Acquisition> acq;
   try {
     const drivers::SourceContext ctx = make_source_context(config);
@@ -286,6 +291,11 @@ int run_daemon(const DaemonOptions& options) {
       last_status_ns = now;
       cycles_at_last_status = cycles;
     }
+    if (options.duration_s > 0 &&
+        now - started_ns >= static_cast<std::int64_t>(options.duration_s * 1e9)) {
+      spdlog::info("--duration {} s reached: stopping", options.duration_s);
+      running = false;
+    }
     if (acq->finished()) {
       spdlog::info("source finished");
       running = false;
@@ -295,6 +305,14 @@ int run_daemon(const DaemonOptions& options) {
   acq->stop();
   LogEvent event;
   while (acq->pop_event(event)) log_event(event, acq_config);
+  if (!options.lateness_log.empty()) {
+    if (std::FILE* f = std::fopen(options.lateness_log.c_str(), "w")) {
+      for (const std::int32_t v : acq->lateness_record()) std::fprintf(f, "%d\n", v);
+      std::fclose(f);
+    } else {
+      spdlog::error("cannot write {}", options.lateness_log);
+    }
+  }
   spdlog::info("stopped after {} cycles ({} overruns, {} publish failures)", acq->cycles(),
                acq->overruns(), acq->publisher().failures());
   logger->flush();

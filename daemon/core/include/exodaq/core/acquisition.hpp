@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "exodaq/core/clock.hpp"
 #include "exodaq/core/health.hpp"
@@ -42,6 +43,9 @@ struct AcquisitionConfig {
   std::int64_t run_id = 0;
   ClockPolicy clock;
   std::array<std::string, kJointCount> joint_names;
+  // Benchmarks: record every cycle's wake-up lateness (ns) into memory
+  // reserved at start, for up to this many cycles (0: off). See timing_record().
+  std::int64_t record_lateness_cycles = 0;
 };
 
 // Something the loop wants logged; drained and logged by another thread.
@@ -98,6 +102,9 @@ class Acquisition {
   const drivers::EncoderSource& source() const noexcept { return *source_; }
   // Whether the loop thread got the scheduling/locking it asked for.
   const std::string& realtime_report() const noexcept { return realtime_report_; }
+
+  // The recorded wake-up lateness (ns) of each cycle, valid after stop().
+  const std::vector<std::int32_t>& lateness_record() const noexcept { return lateness_record_; }
 
   // Test hook: while set, the loop thread sleeps instead of cycling (a stalled
   // loop, so tests can see the watchdog stop).
@@ -170,6 +177,7 @@ class Acquisition {
   bool started_ = false;
   bool stopped_ = false;
   std::string realtime_report_;
+  std::vector<std::int32_t> lateness_record_;
 };
 
 }  // namespace exodaq::core

@@ -11,6 +11,8 @@ struct DaemonOptions {
   std::string log_level;  // empty: config, then SPDLOG_LEVEL
   bool check_only = false;
   bool print_config = false;
+  double duration_s = 0.0;   // stop by itself after this long (0: run until signalled)
+  std::string lateness_log;  // write each cycle's wake-up lateness (ns, one per line) here at exit
 };
 
 // Returns the process exit code: 0 clean stop, 1 configuration or start-up error.
