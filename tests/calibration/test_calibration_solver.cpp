@@ -265,7 +265,7 @@ TEST(CalibrationSolver, TimeOffsetIsEstimated) {
   ASSERT_TRUE(r.time_offset_s.has_value());
   std::cout << "time offset " << *r.time_offset_s * 1e3 << " ± " << *r.time_offset_std_s * 1e3
             << " ms\n";
-  EXPECT_NEAR(*r.time_offset_s, 0.012, std::max(4 * *r.time_offset_std_s, 0.5e-3));
+  EXPECT_NEAR(*r.time_offset_s, 0.012, 4 * *r.time_offset_std_s);
   EXPECT_LE(r.after.rms_m, 1.2 * kNoise3d);
 }
 

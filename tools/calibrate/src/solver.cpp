@@ -136,8 +136,22 @@ struct MarkerCost {
         ++i;
       const double dt_s = static_cast<double>(e[i + 1].utime_us - e[i].utime_us) * 1e-6;
       const T w = (T(static_cast<double>(t_us - e[i].utime_us) * 1e-6) + tau[0]) / T(dt_s);
+      // Cubic Hermite with finite-difference tangents (C1 in time): linear
+      // interpolation would put a kink in the cost at every encoder sample,
+      // where the solver can stall when the marker phases line up.
+      const int i0 = std::max(i - 1, 0);
+      const int i3 = std::min(i + 2, static_cast<int>(e.size()) - 1);
+      const double span1 = static_cast<double>(e[i + 1].utime_us - e[i0].utime_us) * 1e-6;
+      const double span2 = static_cast<double>(e[i3].utime_us - e[i].utime_us) * 1e-6;
+      const T w2 = w * w, w3 = w2 * w;
+      const T h00 = T(2.0) * w3 - T(3.0) * w2 + T(1.0);
+      const T h10 = w3 - T(2.0) * w2 + w;
+      const T h01 = T(-2.0) * w3 + T(3.0) * w2;
+      const T h11 = w3 - w2;
       for (int j = 0; j < kJoints; ++j) {
-        th[j] = T(e[i].theta_r[j]) + w * T(e[i + 1].theta_r[j] - e[i].theta_r[j]);
+        const double m1 = (e[i + 1].theta_r[j] - e[i0].theta_r[j]) / span1 * dt_s;
+        const double m2 = (e[i3].theta_r[j] - e[i].theta_r[j]) / span2 * dt_s;
+        th[j] = h00 * T(e[i].theta_r[j]) + h10 * T(m1) + h01 * T(e[i + 1].theta_r[j]) + h11 * T(m2);
       }
     }
     const Eigen::Matrix<T, 3, 1> p = model_point(*model, x, th.data());
