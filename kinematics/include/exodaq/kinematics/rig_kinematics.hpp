@@ -8,9 +8,11 @@ namespace exodaq::kin {
 struct RigKinematicsConfig {
   int elbow_frame = 4;      // frame whose origin is the elbow (seed 000: frame 4, at d4 = L1)
   int shoulder_joints = 4;  // J_o: angular rows of the first four joints
-  // The normaliser of Fig. 18: the largest sqrt(det(J_o J_o^T)) reachable. For
-  // k unit-axis columns in 3-D it is (k/3)^(3/2) (all singular values equal).
-  double shoulder_manipulability_max = 1.5396007178390020;  // (4/3)^(3/2)
+  // The normaliser of Fig. 18: the largest sqrt(det(J_o J_o^T)) the arm can
+  // reach. (k/3)^(3/2) bounds it for any k unit-axis columns in 3-D; the model
+  // file gives the arm's own value (sqrt(2) for seed 000: det = 2(s2^2 + s3^2 -
+  // s2^2 s3^2), largest at home).
+  double shoulder_manipulability_max = 1.5396007178390020;  // (4/3)^(3/2), a generic bound
   double singularity_threshold = 0.05;                      // on the normalised value
 };
 
