@@ -556,7 +556,7 @@ std::string Degeneracy::describe() const {
     o << ": it has no effect on the marker";
   }
   o << "; explained " << fmt("%.6f", explained);
-  if (std::isfinite(stddev_if_free)) {
+  if (!exact && std::isfinite(stddev_if_free)) {
     o << ", std if estimated " << fmt("%.3g", to_display(held, stddev_if_free)) << " "
       << display_unit(held);
   }
@@ -825,7 +825,7 @@ Report calibrate(const NominalModel& model, const std::vector<AlignedSample>& po
         }
       }
       rep.params[h].note = d.exact ? "exactly unobservable" : "nearly unobservable";
-      if (std::isfinite(d.stddev_if_free)) {
+      if (!d.exact && std::isfinite(d.stddev_if_free)) {
         rep.params[h].note += ", std if estimated " + fmt("%.3g", to_display(h, d.stddev_if_free)) +
                               " " + display_unit(h);
       }
