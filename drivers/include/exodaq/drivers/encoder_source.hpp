@@ -43,6 +43,11 @@ class EncoderSource {
   // paced by the recording. Live sources return -1 (paced by the loop clock).
   virtual std::int64_t next_sample_mono_ns() const noexcept { return -1; }
 
+  // For replay: the recorded cycle number (seq) of the sample the last read()
+  // delivered, so a replay keeps the recording's seq across the live run's
+  // skipped cycles. -1: none (live sources; the loop counts itself).
+  virtual std::int64_t recorded_seq() const noexcept { return -1; }
+
   virtual SourceStats stats() const noexcept = 0;
 
   // Live sources with a bus: whether the daemon should send SYNC this cycle is

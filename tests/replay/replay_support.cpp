@@ -1,0 +1,135 @@
+#include "replay_support.hpp"
+
+#include <lcm/lcm.h>
+#include <sys/stat.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace exodaq::test {
+
+std::vector<LogEvent> read_log(const std::string& path) {
+  std::vector<LogEvent> out;
+  lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "r");
+  if (log == nullptr) throw std::runtime_error("cannot open LCM log " + path);
+  while (lcm_eventlog_event_t* e = lcm_eventlog_read_next_event(log)) {
+    LogEvent m;
+    m.channel.assign(e->channel, static_cast<std::size_t>(e->channellen));
+    const auto* d = static_cast<const std::uint8_t*>(e->data);
+    m.data.assign(d, d + e->datalen);
+    m.timestamp = e->timestamp;
+    out.push_back(std::move(m));
+    lcm_eventlog_free_event(e);
+  }
+  lcm_eventlog_destroy(log);
+  return out;
+}
+
+void write_log(const std::string& path, const std::vector<LogEvent>& events) {
+  lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "w");
+  if (log == nullptr) throw std::runtime_error("cannot create LCM log " + path);
+  for (const auto& e : events) {
+    lcm_eventlog_event_t ev{};
+    ev.timestamp = e.timestamp;
+    ev.channellen = static_cast<std::int32_t>(e.channel.size());
+    ev.datalen = static_cast<std::int32_t>(e.data.size());
+    ev.channel = const_cast<char*>(e.channel.c_str());
+    ev.data = const_cast<std::uint8_t*>(e.data.data());
+    lcm_eventlog_write_event(log, &ev);
+  }
+  lcm_eventlog_destroy(log);
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + path);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+  if (!out) throw std::runtime_error("cannot write " + path);
+}
+
+std::int64_t file_size(const std::string& path) {
+  struct stat st {};
+  if (stat(path.c_str(), &st) != 0) return -1;
+  return static_cast<std::int64_t>(st.st_size);
+}
+
+namespace {
+void replace_once(std::string& text, const std::string& from, const std::string& to) {
+  const auto pos = text.find(from);
+  if (pos == std::string::npos) throw std::runtime_error("config/sim.yaml has no '" + from + "'");
+  text.replace(pos, from.size(), to);
+}
+}  // namespace
+
+std::string write_sim_config(const std::string& dir, const std::string& prefix) {
+  const std::string src = EXODAQ_SOURCE_DIR "/config/";
+  std::string text = read_text(src + "sim.yaml");
+  replace_once(text, "\nmodel: ", "\nmodel: " + src);
+  replace_once(text, "\ncalibration: ", "\ncalibration: " + src);
+  replace_once(text, "prefix: \"\"", "prefix: \"" + prefix + "\"");
+  const std::string path = dir + "/sim.yaml";
+  write_text(path, text);
+  return path;
+}
+
+std::string candump_line(const drivers::can::CanFrame& f, std::int64_t stamp_ns,
+                         const std::string& iface) {
+  namespace ff = drivers::can::frame_flag;
+  char buf[128];
+  int n = std::snprintf(buf, sizeof buf, "(%lld.%06lld) %s ",
+                        static_cast<long long>(stamp_ns / 1'000'000'000),
+                        static_cast<long long>((stamp_ns % 1'000'000'000) / 1000), iface.c_str());
+  if ((f.flags & ff::kError) != 0) {
+    n += std::snprintf(buf + n, sizeof buf - static_cast<std::size_t>(n), "%08X#",
+                       f.id | 0x20000000U);
+  } else if ((f.flags & ff::kExtended) != 0) {
+    n += std::snprintf(buf + n, sizeof buf - static_cast<std::size_t>(n), "%08X#", f.id);
+  } else {
+    n += std::snprintf(buf + n, sizeof buf - static_cast<std::size_t>(n), "%03X#", f.id);
+  }
+  if ((f.flags & ff::kRtr) != 0) {
+    if (f.dlc > 0) {
+      std::snprintf(buf + n, sizeof buf - static_cast<std::size_t>(n), "R%d", f.dlc);
+    } else {
+      std::snprintf(buf + n, sizeof buf - static_cast<std::size_t>(n), "R");
+    }
+  } else {
+    for (int i = 0; i < f.dlc && i < 8; ++i) {
+      n += std::snprintf(buf + n, sizeof buf - static_cast<std::size_t>(n), "%02X",
+                         f.data[static_cast<std::size_t>(i)]);
+    }
+  }
+  return std::string(buf) + "\n";
+}
+
+SimCandump sim_candump(const drivers::sim::SimOptions& options, std::int64_t cycles,
+                       std::int64_t wall_start_ns) {
+  drivers::sim::SimRig rig(options);
+  SimCandump out;
+  drivers::sim::SimBoard::Frames frames{};
+  for (std::int64_t k = 0; k < cycles; ++k) {
+    const int n = rig.step(k, frames, wall_start_ns, 0);
+    std::array<std::int64_t, 6> counts{};
+    for (int j = 0; j < 6; ++j) {
+      counts[static_cast<std::size_t>(rig.encoders().params(j).channel)] = rig.encoders().count(j);
+    }
+    out.counts.push_back(counts);
+    out.stamp_ns.push_back(wall_start_ns + rig.sample_offset_ns(k));
+    for (int i = 0; i < n; ++i) {
+      const auto& f = frames[static_cast<std::size_t>(i)];
+      out.text += candump_line(f, f.wall_ns);
+    }
+  }
+  return out;
+}
+
+}  // namespace exodaq::test

@@ -1,0 +1,2 @@
+// The replay backend on generated inputs.
+#include <gtest/gtest.h>

@@ -1,0 +1,211 @@
+// End to end, with real processes: exodaqd on the simulated rig recorded by
+// the real lcm-logger, then `exodaq replay` at --speed max must reproduce the
+// live joint_state_t and palm_pose_t messages exactly; two replays give the
+// same bytes; `exodaq export` and `exodaq plot` on the result.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/joint_state_t.hpp"
+#include "exodaq/palm_pose_t.hpp"
+#include "exodaq/status_t.hpp"
+#include "process.hpp"
+#include "replay_support.hpp"
+
+namespace exodaq::test {
+namespace {
+
+constexpr std::int32_t kSampleReplay = 1024;  // joint_state_t::SAMPLE_REPLAY
+constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+
+// One live recording shared by every test of the suite.
+struct Live {
+  std::string dir;
+  std::string prefix;
+  std::string config;
+  std::string log;
+  std::string replay;  // exodaq replay --speed max of `log`
+  std::string replay_out;
+};
+Live* g_live = nullptr;
+
+bool wait_for_file(const std::string& path, std::chrono::milliseconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < end) {
+    if (file_size(path) >= 0) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return false;
+}
+
+RunResult exodaq(const std::vector<std::string>& args) {
+  std::vector<std::string> argv{EXODAQ_TOOL};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return run(argv, std::chrono::seconds(120));
+}
+
+class ReplayLive : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    auto* live = new Live;
+    live->dir = make_temp_dir("replay-live");
+    live->prefix = unique_prefix("rep");
+    live->config = write_sim_config(live->dir, live->prefix);
+    live->log = live->dir + "/live.lcm";
+    {
+      Process logger({"lcm-logger", std::string("--lcm-url=") + kUrl, "-c", live->prefix + ".*",
+                      "-q", "-f", live->log},
+                     live->dir + "/logger.out", live->dir + "/logger.err");
+      ASSERT_TRUE(wait_for_file(live->log, std::chrono::seconds(5))) << "lcm-logger did not start";
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      {
+        Process daemon({EXODAQD, "--config", live->config}, live->dir + "/exodaqd.out",
+                       live->dir + "/exodaqd.err");
+        // Long enough for the sim's homing sweeps of all six joints (~10 s)
+        // and a few reaches after.
+        std::this_thread::sleep_for(std::chrono::seconds(14));
+        daemon.signal(SIGINT);
+        const auto code = daemon.wait(std::chrono::seconds(10));
+        ASSERT_TRUE(code.has_value());
+        ASSERT_EQ(*code, 0) << read_file(live->dir + "/exodaqd.err");
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+      logger.signal(SIGINT);
+      ASSERT_TRUE(logger.wait(std::chrono::seconds(10)).has_value());
+    }
+    live->replay = live->dir + "/replay.lcm";
+    const RunResult r = exodaq(
+        {"replay", live->log, "--config", live->config, "--out", live->replay, "--speed", "max"});
+    live->replay_out = r.out + r.err;
+    ASSERT_EQ(r.exit_code, 0) << live->replay_out;
+    g_live = live;
+  }
+  static void TearDownTestSuite() {
+    delete g_live;
+    g_live = nullptr;
+  }
+  void SetUp() override {
+    if (g_live == nullptr) GTEST_SKIP() << "the live recording failed (see the first test)";
+  }
+};
+
+template <typename Msg>
+std::vector<std::uint8_t> bytes_of(const Msg& m) {
+  std::vector<std::uint8_t> b(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(b.data(), 0, static_cast<int>(b.size()));
+  return b;
+}
+
+TEST_F(ReplayLive, ReproducesLiveJointAndPalmMessagesExactly) {
+  const auto live = read_log(g_live->log);
+  const auto replay = read_log(g_live->replay);
+  const std::string p = g_live->prefix;
+  const auto live_joint = messages_by_seq<joint_state_t>(live, p + "EXO_JOINT_STATE");
+  const auto live_palm = messages_by_seq<palm_pose_t>(live, p + "EXO_PALM_POSE");
+  const auto live_raw = messages_by_seq<encoder_raw_t>(live, p + "EXO_ENCODER_RAW");
+  const auto rep_joint = messages_by_seq<joint_state_t>(replay, p + "EXO_JOINT_STATE");
+  const auto rep_palm = messages_by_seq<palm_pose_t>(replay, p + "EXO_PALM_POSE");
+  ASSERT_GT(live_raw.size(), 10'000U) << "live run too short";
+  // One output cycle per recorded raw message, with the recorded seq.
+  ASSERT_EQ(rep_joint.size(), live_raw.size());
+  ASSERT_EQ(rep_palm.size(), live_raw.size());
+  for (const auto& [seq, raw] : live_raw) {
+    ASSERT_EQ(rep_joint.count(seq), 1U) << "seq " << seq;
+  }
+
+  // The live run must have got somewhere: all joints homed, valid poses.
+  std::size_t valid = 0;
+  for (const auto& [seq, m] : live_palm) valid += m.valid ? 1 : 0;
+  EXPECT_GT(valid, 1000U);
+
+  // Every cycle that the recorder caught on all three channels must match
+  // byte for byte; the only difference allowed is the SAMPLE_REPLAY bit.
+  std::size_t compared = 0;
+  for (const auto& [seq, lj] : live_joint) {
+    if (live_raw.count(seq) == 0 || live_palm.count(seq) == 0) continue;
+    joint_state_t rj = rep_joint.at(seq);
+    ASSERT_EQ(rj.sample_flags & kSampleReplay, kSampleReplay) << "seq " << seq;
+    rj.sample_flags &= ~kSampleReplay;
+    if (bytes_of(rj) != bytes_of(lj)) {
+      ADD_FAILURE() << "joint_state_t differs at seq " << seq << ": utime " << lj.utime << "/"
+                    << rj.utime << " mono " << lj.mono_ns << "/" << rj.mono_ns << " flags0 "
+                    << lj.flags[0] << "/" << rj.flags[0] << " sample_flags " << lj.sample_flags
+                    << "/" << rj.sample_flags << " pos0 " << lj.position[0] << "/" << rj.position[0]
+                    << " vel0 " << lj.velocity[0] << "/" << rj.velocity[0];
+      return;
+    }
+    const palm_pose_t& lp = live_palm.at(seq);
+    const palm_pose_t& rp = rep_palm.at(seq);
+    if (bytes_of(rp) != bytes_of(lp)) {
+      ADD_FAILURE() << "palm_pose_t differs at seq " << seq << ": valid " << int(lp.valid) << "/"
+                    << int(rp.valid) << " reason " << lp.invalid_reason << "/" << rp.invalid_reason
+                    << " x " << lp.position[0] << "/" << rp.position[0];
+      return;
+    }
+    ++compared;
+  }
+  EXPECT_GT(compared, live_raw.size() * 99 / 100);
+
+  // Event timestamps are the messages' utime, as lcm-logger's are close to.
+  for (const auto& e : replay) {
+    if (e.channel == p + "EXO_JOINT_STATE") {
+      joint_state_t m;
+      ASSERT_GE(m.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+      ASSERT_EQ(e.timestamp, m.utime);
+    }
+  }
+}
+
+TEST_F(ReplayLive, RawChannelIsReproducedButForReplayMarks) {
+  const auto live =
+      messages_by_seq<encoder_raw_t>(read_log(g_live->log), g_live->prefix + "EXO_ENCODER_RAW");
+  const auto rep =
+      messages_by_seq<encoder_raw_t>(read_log(g_live->replay), g_live->prefix + "EXO_ENCODER_RAW");
+  ASSERT_EQ(rep.size(), live.size());
+  for (const auto& [seq, l] : live) {
+    encoder_raw_t r = rep.at(seq);
+    EXPECT_EQ(r.wall_ns, r.utime * 1000);
+    EXPECT_NE(r.source_flags & kSampleReplay, 0);
+    r.source_flags = (r.source_flags & ~kSampleReplay) & ~(256 | 64 | 128);  // loop bits
+    r.wall_ns = l.wall_ns;
+    ASSERT_EQ(bytes_of(r), bytes_of(l)) << "seq " << seq;
+  }
+}
+
+TEST_F(ReplayLive, TwoReplaysAreByteIdenticalWhateverTheSpeed) {
+  const std::string again = g_live->dir + "/replay2.lcm";
+  RunResult r = exodaq({"replay", g_live->log, "--config", g_live->config, "--out", again});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_EQ(read_text(again), read_text(g_live->replay));
+  // Paced at 8x real time: slower, same bytes.
+  const std::string paced = g_live->dir + "/replay-paced.lcm";
+  r = exodaq({"replay", g_live->log, "--config", g_live->config, "--out", paced, "--speed", "8"});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_EQ(read_text(paced), read_text(g_live->replay));
+}
+
+TEST_F(ReplayLive, StatusIsWrittenAndRunIdIsTheRecordings) {
+  const auto replay = read_log(g_live->replay);
+  const auto live_raw =
+      messages_by_seq<encoder_raw_t>(read_log(g_live->log), g_live->prefix + "EXO_ENCODER_RAW");
+  const std::int64_t run_id = live_raw.begin()->second.run_id;
+  int status = 0;
+  for (const auto& e : replay) {
+    if (e.channel != g_live->prefix + "EXO_STATUS") continue;
+    status_t s;
+    ASSERT_GE(s.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    EXPECT_EQ(s.run_id, run_id);
+    EXPECT_EQ(s.source, "replay");
+    ++status;
+  }
+  EXPECT_GT(status, 50);
+}
+
+}  // namespace
+}  // namespace exodaq::test

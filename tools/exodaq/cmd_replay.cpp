@@ -1,0 +1,387 @@
+// exodaq replay: re-process a recording through the full pipeline (homing,
+// offsets, kinematics, faults) with a configuration's model and calibration,
+// and write the results as an LCM log (docs/replay.md).
+//   exodaq replay IN --config C --out OUT.lcm [--speed 0.5|1|4|max]
+//                 [--format auto|lcm|candump] [--calibration FILE]
+//                 [--channel NAME] [--prefix P] [--quiet]
+//
+// Cycles are driven one by one on this thread (Acquisition::run_cycle), each
+// at its recorded instant: at --speed max nothing sleeps, otherwise cycle k
+// starts (recorded_k - recorded_0) / speed after the first. The output does
+// not depend on the speed: same input, config and calibration, same bytes.
+#include <lcm/lcm.h>
+#include <signal.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "command.hpp"
+#include "exodaq/core/acquisition.hpp"
+#include "exodaq/core/publisher.hpp"
+#include "exodaq/core/service_config.hpp"
+#include "exodaq/drivers/replay_source.hpp"
+#include "exodaq/drivers/source_factory.hpp"
+#include "exodaq/status_t.hpp"
+
+namespace exodaq::tools {
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+
+void on_interrupt(int /*sig*/) {
+  g_interrupted.store(true);
+}
+
+std::int64_t mono_now() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+void sleep_until(std::int64_t deadline_ns) {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR &&
+         !g_interrupted.load()) {
+  }
+}
+
+std::int64_t be64(const std::uint8_t* p) {
+  std::uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = (v << 8) | p[i];
+  return static_cast<std::int64_t>(v);
+}
+
+// Writes every published message to an LCM log file, as lcm-logger would
+// have recorded it live (event timestamp = the message's utime). status_t
+// fields that measure the replaying machine rather than the recording
+// (mono_ns of the assembly, the work-time percentiles) are set to
+// deterministic values: mono_ns = the last cycle's, work_* = 0.
+class LcmLogSink final : public core::MessageSink {
+ public:
+  explicit LcmLogSink(const std::string& path)
+      : path_(path), log_(lcm_eventlog_create(path.c_str(), "w")) {
+    if (log_ == nullptr) {
+      throw std::runtime_error("cannot create '" + path + "': " + std::strerror(errno));
+    }
+    std::setvbuf(log_->f, nullptr, _IOFBF, 1 << 20);
+  }
+  ~LcmLogSink() override {
+    if (log_ != nullptr) lcm_eventlog_destroy(log_);
+  }
+  LcmLogSink(const LcmLogSink&) = delete;
+  LcmLogSink& operator=(const LcmLogSink&) = delete;
+
+  // Messages before arm() (the Acquisition's start-up encoder warm-up) are dropped.
+  void arm() noexcept { armed_ = true; }
+
+  bool publish(const std::string& channel, const core::OutgoingMessage& msg) noexcept override {
+    if (!armed_) return true;
+    const std::uint8_t* data = msg.bytes.data();
+    int size = static_cast<int>(msg.size);
+    try {
+      if (msg.channel == core::ChannelId::kJointState && size >= 24) {
+        last_mono_ns_ = be64(data + 16);
+      } else if (msg.channel == core::ChannelId::kPalmPose && size > 40) {
+        ++palm_;
+        if (data[40] != 0) ++valid_;
+      } else if (msg.channel == core::ChannelId::kStatus) {
+        if (status_.decode(data, 0, size) < 0) return false;
+        status_.mono_ns = last_mono_ns_;
+        status_.work_p50_us = status_.work_p99_us = status_.work_max_us = 0.0;
+        const int n = status_.encode(buffer_.data(), 0, static_cast<int>(buffer_.size()));
+        if (n < 0) return false;
+        data = buffer_.data();
+        size = n;
+      }
+    } catch (...) {
+      return false;
+    }
+    lcm_eventlog_event_t ev{};
+    ev.timestamp = msg.utime_us;
+    ev.channellen = static_cast<std::int32_t>(channel.size());
+    ev.datalen = size;
+    ev.channel = const_cast<char*>(channel.c_str());
+    ev.data = const_cast<std::uint8_t*>(data);
+    if (lcm_eventlog_write_event(log_, &ev) != 0) return false;
+    ++written_;
+    return true;
+  }
+
+  // Flushes and reports a write error (disk full...) as an exception.
+  void finish() {
+    if (std::fflush(log_->f) != 0 || std::ferror(log_->f) != 0) {
+      throw std::runtime_error("error writing '" + path_ + "': " + std::strerror(errno));
+    }
+  }
+
+  std::int64_t written() const noexcept { return written_; }
+  std::int64_t palm_messages() const noexcept { return palm_; }
+  std::int64_t valid_palm() const noexcept { return valid_; }
+
+ private:
+  std::string path_;
+  lcm_eventlog_t* log_;
+  bool armed_ = false;
+  std::int64_t last_mono_ns_ = 0;
+  std::int64_t written_ = 0;
+  std::int64_t palm_ = 0;
+  std::int64_t valid_ = 0;
+  exodaq::status_t status_;
+  std::array<std::uint8_t, core::kMaxMessageBytes> buffer_{};
+};
+
+struct ReplayOptions {
+  std::string input;
+  std::string config;
+  std::string out;
+  std::string speed = "max";
+  std::string format = "auto";
+  std::string calibration;
+  std::string channel;
+  std::string prefix;
+  bool prefix_given = false;
+  bool quiet = false;
+};
+
+// The daemon's mapping from a service config (daemon_runtime.cpp), for replay.
+core::AcquisitionConfig acquisition_config(const core::ServiceConfig& c, double speed,
+                                           std::int64_t run_id) {
+  core::AcquisitionConfig a;
+  a.rig = c.rig;
+  a.period_ns = static_cast<std::int64_t>(1e9 / c.loop.rate_hz);
+  a.fault_after_ms = c.loop.fault_after_ms;
+  a.status_every_cycles =
+      std::max(1, static_cast<int>(c.loop.rate_hz / c.loop.status_rate_hz + 0.5));
+  a.publish_raw = c.lcm.publish_raw;
+  a.clock = c.clock;
+  const auto& joints = c.model.chain.joints();
+  for (int i = 0; i < core::kJointCount; ++i) {
+    a.joint_names[static_cast<std::size_t>(i)] = joints[static_cast<std::size_t>(i)].name;
+  }
+  a.replay = true;
+  a.replay_speed = speed;
+  a.run_id = run_id;
+  return a;
+}
+
+class Progress {
+ public:
+  Progress(std::int64_t total, bool enabled) : total_(total), enabled_(enabled) {}
+  void update(std::int64_t done, std::int64_t now_ns, bool force = false) {
+    if (!enabled_ || (!force && now_ns - last_ns_ < 100'000'000)) return;
+    last_ns_ = now_ns;
+    constexpr int kWidth = 30;
+    const double f = total_ > 0 ? static_cast<double>(done) / static_cast<double>(total_) : 1.0;
+    const int filled = static_cast<int>(f * kWidth);
+    char bar[kWidth + 1];
+    for (int i = 0; i < kWidth; ++i) bar[i] = i < filled ? '#' : '.';
+    bar[kWidth] = '\0';
+    std::fprintf(stderr, "\r[%s] %5.1f%%  %lld/%lld cycles", bar, 100.0 * f,
+                 static_cast<long long>(done), static_cast<long long>(total_));
+    std::fflush(stderr);
+  }
+  void end() {
+    if (enabled_) std::fprintf(stderr, "\n");
+  }
+
+ private:
+  std::int64_t total_;
+  bool enabled_;
+  std::int64_t last_ns_ = 0;
+};
+
+int run_replay(const ReplayOptions& o) {
+  double speed = 0.0;
+  if (o.speed != "max") {
+    char* end = nullptr;
+    speed = std::strtod(o.speed.c_str(), &end);
+    if (end == o.speed.c_str() || *end != '\0' || !(speed > 0.0) || !std::isfinite(speed)) {
+      std::fprintf(stderr, "exodaq replay: --speed must be a positive number or 'max', not '%s'\n",
+                   o.speed.c_str());
+      return kExitUsage;
+    }
+  }
+
+  core::ServiceConfig cfg = core::load_service_config(o.config);
+  if (!o.calibration.empty()) {
+    cfg.calibration = config::load_calibration_file(o.calibration);
+    cfg.calibration_path = o.calibration;
+  }
+  drivers::SourceOptions src_opts = cfg.source;
+  src_opts.backend = drivers::SourceBackend::kReplay;
+  src_opts.replay.path = o.input;
+  src_opts.replay.format = o.format;
+  if (!o.channel.empty()) src_opts.replay.channel = o.channel;
+  src_opts.replay_speed = speed;
+
+  std::unique_ptr<drivers::EncoderSource> source =
+      drivers::make_source(src_opts, core::make_source_context(cfg));
+  auto* replay = dynamic_cast<drivers::ReplaySource*>(source.get());
+  if (replay == nullptr) throw std::logic_error("the replay backend is not a ReplaySource");
+  const std::int64_t load_start = mono_now();
+  replay->start();  // loads the input; Acquisition's start() only rewinds
+  const double load_s = static_cast<double>(mono_now() - load_start) * 1e-9;
+  const drivers::ReplayLoadSummary summary = replay->summary();
+
+  std::string prefix = cfg.lcm.prefix;
+  if (o.prefix_given) {
+    prefix = o.prefix;
+  } else if (summary.format == drivers::ReplayFormat::kLcm) {
+    prefix = summary.prefix;  // the recording's channel names
+  }
+
+  auto sink_owner = std::make_unique<LcmLogSink>(o.out);
+  LcmLogSink* sink = sink_owner.get();
+  core::Acquisition acq(acquisition_config(cfg, speed, summary.run_id),
+                        core::make_pipeline_config(cfg), std::move(source), std::move(sink_owner),
+                        prefix, nullptr);
+  acq.prepare_for_manual_cycles();
+  sink->arm();
+
+  struct sigaction sa {};
+  sa.sa_handler = on_interrupt;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  const bool tty = !o.quiet && isatty(STDERR_FILENO) != 0;
+  Progress progress(replay->sample_count(), tty);
+  core::LogEvent event;
+  std::int64_t cycles = 0;
+  std::int64_t last_t = 0;
+  std::int64_t first_recorded = -1;
+  const std::int64_t run_start = mono_now();
+  while (!g_interrupted.load(std::memory_order_relaxed)) {
+    const std::int64_t next = replay->next_sample_mono_ns();
+    const std::int64_t t = next >= 0 ? next : last_t;
+    if (speed > 0.0 && next >= 0) {
+      if (first_recorded < 0) first_recorded = next;
+      sleep_until(run_start +
+                  static_cast<std::int64_t>(static_cast<double>(next - first_recorded) / speed));
+    }
+    // The recorded instant is both deadline and wake-up: a missing sample
+    // keeps its recorded mono_ns, and the status timing describes the recording.
+    if (!acq.run_cycle(t, t)) break;
+    last_t = t;
+    ++cycles;
+    if (speed > 0.0 || (cycles & 255) == 0) {
+      acq.publisher().drain();
+      while (acq.pop_event(event)) {
+      }
+      if ((cycles & 1023) == 0 || speed > 0.0) progress.update(cycles, mono_now());
+    }
+  }
+  acq.stop();  // final status
+  acq.publisher().drain();
+  while (acq.pop_event(event)) {
+  }
+  const double run_s = static_cast<double>(mono_now() - run_start) * 1e-9;
+  progress.update(cycles, mono_now(), true);
+  progress.end();
+  sink->finish();
+
+  const auto ll = [](std::int64_t v) { return static_cast<long long>(v); };
+  const char* fmt = summary.format == drivers::ReplayFormat::kLcm ? "lcm" : "candump";
+  std::printf("exodaq replay: %s (%s", o.input.c_str(), fmt);
+  if (summary.format == drivers::ReplayFormat::kLcm) {
+    std::printf(", channel %s", summary.channel.c_str());
+  }
+  std::printf(", run %016llx) -> %s (prefix '%s')\n",
+              static_cast<unsigned long long>(summary.run_id), o.out.c_str(), prefix.c_str());
+  std::printf("  config %s, calibration %s\n", o.config.c_str(), cfg.calibration_path.c_str());
+  std::printf("  %lld cycles (%.3f s recorded) in %.3f s", ll(cycles), summary.duration_s, run_s);
+  if (run_s > 0.0) {
+    const double rate = static_cast<double>(cycles) / run_s;
+    const double period_s = static_cast<double>(cfg.loop.rate_hz) > 0 ? 1.0 / cfg.loop.rate_hz : 0;
+    std::printf(": %.0f cycles/s, %.0fx real time", rate, rate * period_s);
+  }
+  std::printf(" (loading %.3f s)\n", load_s);
+  std::printf("  %lld messages written; palm pose valid in %lld of %lld cycles (%.1f%%)\n",
+              ll(sink->written()), ll(sink->valid_palm()), ll(sink->palm_messages()),
+              sink->palm_messages() > 0 ? 100.0 * static_cast<double>(sink->valid_palm()) /
+                                              static_cast<double>(sink->palm_messages())
+                                        : 0.0);
+  if (summary.format == drivers::ReplayFormat::kLcm) {
+    std::printf(
+        "  input: %lld events, %lld samples (%lld missing), %lld start-up messages skipped, "
+        "%lld messages of other runs skipped\n",
+        ll(summary.events), ll(summary.samples), ll(summary.missing), ll(summary.skipped_warmup),
+        ll(summary.skipped_other_runs));
+  } else {
+    const drivers::SourceStats st = replay->stats();
+    std::printf(
+        "  input: %lld lines, %lld frames, %lld malformed lines, %lld samples (%lld missing), "
+        "%lld sequence gaps, %lld bus errors\n",
+        ll(summary.events), ll(summary.frames), ll(summary.bad_lines), ll(summary.samples),
+        ll(summary.missing), ll(st.seq_gaps), ll(st.bus_errors));
+  }
+  const auto& issues = replay->issues();
+  if (!issues.empty()) {
+    const std::int64_t total = summary.format == drivers::ReplayFormat::kCandump
+                                   ? summary.bad_lines
+                                   : static_cast<std::int64_t>(issues.size());
+    std::fprintf(stderr, "exodaq replay: %lld problem(s) in %s:\n", ll(total), o.input.c_str());
+    constexpr std::size_t kShown = 50;
+    for (std::size_t i = 0; i < issues.size() && i < kShown; ++i) {
+      std::fprintf(stderr, "  %s:%lld: %s\n", o.input.c_str(), ll(issues[i].line),
+                   issues[i].what.c_str());
+    }
+    if (total > static_cast<std::int64_t>(kShown)) {
+      std::fprintf(stderr, "  ... and %lld more\n", ll(total - static_cast<std::int64_t>(kShown)));
+    }
+  }
+  if (g_interrupted.load()) {
+    std::fprintf(stderr, "exodaq replay: interrupted after %lld cycles; %s holds them\n",
+                 ll(cycles), o.out.c_str());
+    return kExitFailure;
+  }
+  return kExitOk;
+}
+
+std::function<int()> setup_replay(CLI::App& sub) {
+  auto o = std::make_shared<ReplayOptions>();
+  sub.add_option("input", o->input, "recording: lcm-logger log or candump -l file")
+      ->required()
+      ->check(CLI::ExistingFile);
+  sub.add_option("-c,--config", o->config, "service configuration (model, calibration, encoders)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  sub.add_option("-o,--out", o->out, "LCM log to write (all four channels)")->required();
+  sub.add_option("--speed", o->speed,
+                 "x real time (0.5, 1, 4, ...) or 'max' (no sleeping; default)");
+  sub.add_option("--format", o->format, "input format")
+      ->check(CLI::IsMember({"auto", "lcm", "candump"}));
+  sub.add_option("--calibration", o->calibration, "calibration file to use instead of the config's")
+      ->check(CLI::ExistingFile);
+  sub.add_option("--channel", o->channel,
+                 "LCM input: the encoder_raw_t channel (default: the one ending in "
+                 "EXO_ENCODER_RAW)");
+  auto* prefix =
+      sub.add_option("--prefix", o->prefix,
+                     "channel prefix of the output (default: the recording's for LCM input, the "
+                     "config's lcm.prefix for candump)");
+  sub.add_flag("-q,--quiet", o->quiet, "no progress bar");
+  return [o, prefix] {
+    o->prefix_given = prefix->count() > 0;
+    return run_replay(*o);
+  };
+}
+
+}  // namespace
+}  // namespace exodaq::tools
+
+EXODAQ_REGISTER_COMMAND(replay, "replay",
+                        "re-process a recording (lcm-logger or candump -l) through the full "
+                        "pipeline and write an LCM log of the results",
+                        exodaq::tools::setup_replay);
