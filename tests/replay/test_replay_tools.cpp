@@ -5,12 +5,18 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
+#include <numbers>
 #include <sstream>
 #include <thread>
 
+#include "exodaq/core/service_config.hpp"
+#include "exodaq/drivers/sim_options.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
@@ -207,5 +213,137 @@ TEST_F(ReplayLive, StatusIsWrittenAndRunIdIsTheRecordings) {
   EXPECT_GT(status, 50);
 }
 
+// --- export -----------------------------------------------------------------
+
+std::vector<std::vector<std::string>> read_csv(const std::string& path) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream in(read_text(path));
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::size_t start = 0;
+    while (true) {
+      const std::size_t comma = line.find(',', start);
+      cells.push_back(line.substr(start, comma - start));
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+    rows.push_back(std::move(cells));
+  }
+  return rows;
+}
+
+TEST_F(ReplayLive, ExportHasOneRowPerCycleWithTheLogsValues) {
+  const std::string csv = g_live->dir + "/cycles.csv";
+  const RunResult r = exodaq({"export", g_live->replay, "--csv", csv});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const auto rows = read_csv(csv);
+  const auto log = read_log(g_live->replay);
+  const auto joints = messages_by_seq<joint_state_t>(log, g_live->prefix + "EXO_JOINT_STATE");
+  const auto palms = messages_by_seq<palm_pose_t>(log, g_live->prefix + "EXO_PALM_POSE");
+  ASSERT_EQ(rows.size(), joints.size() + 1);  // + header
+  std::map<std::string, std::size_t> col;
+  for (std::size_t i = 0; i < rows[0].size(); ++i) col[rows[0][i]] = i;
+  for (const char* name :
+       {"seq", "utime", "position_0", "velocity_5", "homed_3", "flags_2", "sample_flags", "palm_x",
+        "quat_w", "elbow_z", "manipulability", "valid", "invalid_reason"}) {
+    ASSERT_EQ(col.count(name), 1U) << name;
+  }
+  std::size_t i = 1;
+  for (const auto& [seq, j] : joints) {
+    const auto& row = rows[i++];
+    ASSERT_EQ(row.size(), rows[0].size());
+    ASSERT_EQ(std::stoll(row[col["seq"]]), seq);
+    EXPECT_EQ(std::stoll(row[col["utime"]]), j.utime);
+    for (int k = 0; k < 6; ++k) {
+      // Exact: the shortest text that reads back to the same double.
+      ASSERT_EQ(std::strtod(row[col["position_" + std::to_string(k)]].c_str(), nullptr),
+                j.position[k]);
+      ASSERT_EQ(std::strtod(row[col["velocity_" + std::to_string(k)]].c_str(), nullptr),
+                j.velocity[k]);
+      ASSERT_EQ(row[col["homed_" + std::to_string(k)]], j.homed[k] ? "1" : "0");
+      ASSERT_EQ(std::stoi(row[col["flags_" + std::to_string(k)]]), j.flags[k]);
+    }
+    ASSERT_EQ(std::stoi(row[col["sample_flags"]]), j.sample_flags);
+    const palm_pose_t& p = palms.at(seq);
+    ASSERT_EQ(std::strtod(row[col["palm_x"]].c_str(), nullptr), p.position[0]);
+    ASSERT_EQ(std::strtod(row[col["quat_w"]].c_str(), nullptr), p.orientation[0]);
+    ASSERT_EQ(std::strtod(row[col["elbow_z"]].c_str(), nullptr), p.elbow[2]);
+    ASSERT_EQ(std::strtod(row[col["manipulability"]].c_str(), nullptr), p.shoulder_manipulability);
+    ASSERT_EQ(row[col["valid"]], p.valid ? "1" : "0");
+    ASSERT_EQ(std::stoi(row[col["invalid_reason"]]), p.invalid_reason);
+  }
+}
+
+// --- plot -------------------------------------------------------------------
+
+TEST_F(ReplayLive, PlotWritesOneNonEmptyPngPerPanel) {
+  const std::string dir = g_live->dir + "/plots";
+  const RunResult r = exodaq({"plot", g_live->replay, "--out", dir});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  for (const char* f :
+       {"joint_trajectories.png", "palm_path_3d.png", "shoulder_manipulability.png"}) {
+    const std::string path = dir + "/" + f;
+    EXPECT_GT(file_size(path), 1000) << path;
+    EXPECT_EQ(read_text(path).substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8)) << path;
+  }
+  EXPECT_GT(file_size(dir + "/cycles.csv"), 0);
+}
+
+// --- candump through the whole tool -------------------------------------------
+
+TEST(ReplayCandumpTool, SimFramesReplayToTheTruthWithinOneCount) {
+  const std::string dir = make_temp_dir("replay-candump");
+  const std::string config = write_sim_config(dir, unique_prefix("cd"));
+  const core::ServiceConfig cfg = core::load_service_config(config);
+  const drivers::SourceContext ctx = core::make_source_context(cfg);
+  const drivers::sim::SimOptions opt = drivers::sim_options_from(cfg.source, ctx);
+  const drivers::sim::SimRig truth_rig(opt);
+  const double homing_end = truth_rig.motion().homing_end_s();
+  const auto cycles = static_cast<std::int64_t>((homing_end + 2.0) * 1000.0);
+  constexpr std::int64_t kWallStart = 1'700'000'000'000'000'000LL;
+  const SimCandump cd = sim_candump(opt, cycles, kWallStart);
+  // Two malformed lines, whose numbers must be reported.
+  std::string text = cd.text;
+  const std::size_t cut = text.find('\n', text.size() / 2) + 1;
+  const auto line_of = [&](std::size_t pos) {
+    return 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(pos), '\n');
+  };
+  text.insert(cut, "(1700000000.5) vcan0 181#ZZ\nnot a candump line\n");
+  const auto bad1 = line_of(cut);
+  const std::string input = dir + "/sim.candump";
+  write_text(input, text);
+
+  const std::string out = dir + "/replay.lcm";
+  const RunResult r = exodaq({"replay", input, "--config", config, "--out", out});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.err.find(input + ":" + std::to_string(bad1) + ": bad data"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find(input + ":" + std::to_string(bad1 + 1) + ": bad or missing timestamp"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.out.find("2 malformed lines"), std::string::npos) << r.out;
+
+  const auto joints =
+      messages_by_seq<joint_state_t>(read_log(out), cfg.lcm.prefix + "EXO_JOINT_STATE");
+  ASSERT_EQ(static_cast<std::int64_t>(joints.size()), cycles);
+  std::int64_t checked = 0;
+  for (const auto& [seq, j] : joints) {
+    const double t = static_cast<double>(j.mono_ns - kWallStart) * 1e-9;
+    const auto truth = truth_rig.motion().position(t);
+    for (int i = 0; i < 6; ++i) {
+      if (!j.homed[i]) continue;
+      const auto& e = ctx.joints[static_cast<std::size_t>(i)];
+      const double one_count =
+          2 * std::numbers::pi / (static_cast<double>(ctx.counts_per_rev) * e.gear_ratio);
+      ASSERT_LE(std::abs(j.position[i] - truth[static_cast<std::size_t>(i)]), one_count + 1e-12)
+          << "seq " << seq << " joint " << i;
+      ++checked;
+    }
+  }
+  // Every joint homed for the last two seconds at least.
+  EXPECT_GT(checked, 6 * 2000);
+  EXPECT_TRUE(joints.rbegin()->second.homed[5]);
+}
 }  // namespace
 }  // namespace exodaq::test
