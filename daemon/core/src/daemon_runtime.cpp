@@ -3,16 +3,24 @@
 #include <signal.h>
 #include <spdlog/async.h>
 #include <spdlog/cfg/env.h>
+#include <spdlog/sinks/base_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
-#include <spdlog/sinks/systemd_sink.h>
 #include <spdlog/spdlog.h>
+#include <sys/stat.h>
+#include <sys/uio.h>
+#include <syslog.h>
 #include <systemd/sd-daemon.h>
+#include <systemd/sd-journal.h>
 #include <time.h>
 
+#include <algorithm>
 #include <cinttypes>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <mutex>
+#include <string_view>
+#include <vector>
 
 #include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/core/acquisition.hpp"
@@ -30,32 +38,136 @@ std::int64_t mono_now() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-bool under_systemd() {
-  return std::getenv("JOURNAL_STREAM") != nullptr || std::getenv("INVOCATION_ID") != nullptr ||
-         std::getenv("NOTIFY_SOCKET") != nullptr;
+// Structured journal fields travel with a message through the async logger:
+// the payload is "text" kFieldSep "NAME=value" kFieldSep "NAME=value"... The
+// journal sink sends them as fields; the stderr sink drops them.
+constexpr char kFieldSep = '\x1e';
+
+// stderr is connected to the journal: JOURNAL_STREAM names its device:inode
+// (systemd.exec(5)), so a service whose output goes to a file or terminal keeps it.
+bool stderr_is_journal() {
+  const char* stream = std::getenv("JOURNAL_STREAM");
+  if (stream == nullptr) return false;
+  unsigned long long dev = 0;
+  unsigned long long ino = 0;
+  if (std::sscanf(stream, "%llu:%llu", &dev, &ino) != 2) return false;
+  struct stat st {};
+  if (fstat(STDERR_FILENO, &st) != 0) return false;
+  return static_cast<unsigned long long>(st.st_dev) == dev &&
+         static_cast<unsigned long long>(st.st_ino) == ino;
 }
 
-// spdlog, asynchronous: the loop thread never logs, and the main thread's
-// logging never waits on the journal or a terminal.
-std::shared_ptr<spdlog::logger> make_logger(const LoggingSettings& settings,
-                                            const std::string& level_override) {
-  spdlog::init_thread_pool(8192, 1);
-  spdlog::sink_ptr sink;
-  const bool journal = settings.sink == "journal" || (settings.sink == "auto" && under_systemd());
-  if (journal) {
-    sink = std::make_shared<spdlog::sinks::systemd_sink_mt>("exodaqd");
-  } else {
-    sink = std::make_shared<spdlog::sinks::stderr_color_sink_mt>();
+int syslog_priority(spdlog::level::level_enum level) {
+  switch (level) {
+    case spdlog::level::trace:
+    case spdlog::level::debug:
+      return LOG_DEBUG;
+    case spdlog::level::info:
+      return LOG_INFO;
+    case spdlog::level::warn:
+      return LOG_WARNING;
+    case spdlog::level::err:
+      return LOG_ERR;
+    case spdlog::level::critical:
+      return LOG_CRIT;
+    default:
+      return LOG_INFO;
   }
-  auto logger = std::make_shared<spdlog::async_logger>(
+}
+
+// The native journal protocol, with the fields carried in the payload
+// (EXODAQ_STATE, EXODAQ_JOINT, EXODAQ_EVENT, EXODAQ_SEQ, EXODAQ_RUN_ID ...), so
+// `journalctl -u exodaqd EXODAQ_JOINT=elbow` finds one joint's events.
+class JournalFieldSink final : public spdlog::sinks::base_sink<std::mutex> {
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    const std::string_view payload(msg.payload.data(), msg.payload.size());
+    std::vector<std::string> items;
+    std::size_t cut = payload.find(kFieldSep);
+    items.push_back("MESSAGE=" + std::string(payload.substr(0, cut)));
+    items.push_back("PRIORITY=" + std::to_string(syslog_priority(msg.level)));
+    items.emplace_back("SYSLOG_IDENTIFIER=exodaqd");
+    while (cut != std::string_view::npos) {
+      const std::size_t next = payload.find(kFieldSep, cut + 1);
+      const auto field = payload.substr(
+          cut + 1, next == std::string_view::npos ? std::string_view::npos : next - cut - 1);
+      if (!field.empty()) items.emplace_back(field);
+      cut = next;
+    }
+    std::vector<iovec> iov(items.size());
+    for (std::size_t i = 0; i < items.size(); ++i) {
+      iov[i].iov_base = items[i].data();
+      iov[i].iov_len = items[i].size();
+    }
+    if (sd_journal_sendv(iov.data(), static_cast<int>(iov.size())) < 0) {
+      // No journald (a container, an early boot): the text still goes somewhere.
+      std::fprintf(stderr, "exodaqd: %s\n", items[0].c_str() + 8);
+    }
+  }
+  void flush_() override {}
+};
+
+// stderr, without the structured fields.
+class StderrSink final : public spdlog::sinks::base_sink<std::mutex> {
+ public:
+  StderrSink() : inner_(std::make_shared<spdlog::sinks::stderr_color_sink_st>()) {}
+  void set_inner_pattern(const std::string& pattern) { inner_->set_pattern(pattern); }
+
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    spdlog::details::log_msg copy = msg;
+    const std::string_view payload(msg.payload.data(), msg.payload.size());
+    const std::size_t cut = payload.find(kFieldSep);
+    if (cut != std::string_view::npos)
+      copy.payload = spdlog::string_view_t(msg.payload.data(), cut);
+    inner_->log(copy);
+  }
+  void flush_() override { inner_->flush(); }
+
+ private:
+  std::shared_ptr<spdlog::sinks::stderr_color_sink_st> inner_;
+};
+
+struct Logging {
+  std::shared_ptr<spdlog::logger> logger;
+  bool journal = false;
+};
+
+// spdlog, asynchronous: the loop thread never logs, and the main thread's
+// logging never waits on the journal or a terminal. Level: the config, then
+// SPDLOG_LEVEL, then --log-level.
+Logging make_logger(const LoggingSettings& settings, const std::string& level_override) {
+  spdlog::init_thread_pool(8192, 1);
+  Logging out;
+  out.journal = settings.sink == "journal" || (settings.sink == "auto" && stderr_is_journal());
+  spdlog::sink_ptr sink;
+  if (out.journal) {
+    sink = std::make_shared<JournalFieldSink>();
+  } else {
+    auto err = std::make_shared<StderrSink>();
+    err->set_inner_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+    sink = err;
+  }
+  out.logger = std::make_shared<spdlog::async_logger>(
       "exodaqd", sink, spdlog::thread_pool(), spdlog::async_overflow_policy::overrun_oldest);
-  logger->set_pattern(journal ? "%v" : "%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
-  spdlog::set_default_logger(logger);
+  spdlog::set_default_logger(out.logger);
   spdlog::set_level(spdlog::level::from_str(settings.level));
   spdlog::cfg::load_env_levels();  // SPDLOG_LEVEL overrides the file
   if (!level_override.empty()) spdlog::set_level(spdlog::level::from_str(level_override));
   spdlog::flush_every(std::chrono::seconds(1));
-  return logger;
+  return out;
+}
+
+// The structured-field suffix of a message (see kFieldSep).
+std::string fields(std::initializer_list<std::pair<const char*, std::string>> list) {
+  std::string out;
+  for (const auto& [name, value] : list) {
+    out += kFieldSep;
+    out += name;
+    out += '=';
+    out += value;
+  }
+  return out;
 }
 
 const char* joint_event_text(JointEvent e) {
@@ -80,43 +192,133 @@ const char* joint_event_text(JointEvent e) {
   return "event";
 }
 
-void log_event(const LogEvent& e, const AcquisitionConfig& ac) {
+// The EXODAQ_EVENT field of a joint event.
+const char* joint_event_id(JointEvent e) {
+  switch (e) {
+    case JointEvent::kHomed:
+      return "homed";
+    case JointEvent::kHomingRejected:
+      return "homing_rejected";
+    case JointEvent::kLostCounts:
+      return "lost_counts";
+    case JointEvent::kGlitch:
+      return "glitch";
+    case JointEvent::kStale:
+      return "stale";
+    case JointEvent::kOutOfRange:
+      return "out_of_range";
+    case JointEvent::kUnwrapAmbiguous:
+      return "unwrap_ambiguous";
+    case JointEvent::kNone:
+      break;
+  }
+  return "none";
+}
+
+// One loop event, logged on the main thread with its journal fields.
+// `state`: the service state when the event was drained.
+void log_event(const LogEvent& e, const AcquisitionConfig& ac, std::int64_t run_id,
+               ServiceState state) {
+  const std::string seq = std::to_string(e.seq);
+  const std::string run = std::to_string(run_id);
   switch (e.kind) {
     case LogEvent::Kind::kJoint: {
       const auto& name = ac.joint_names[static_cast<std::size_t>(e.joint)];
       const double deg = e.value * 57.29577951308232;
+      const std::string f = fields({{"EXODAQ_EVENT", joint_event_id(e.joint_event)},
+                                    {"EXODAQ_JOINT", name},
+                                    {"EXODAQ_JOINT_INDEX", std::to_string(e.joint + 1)},
+                                    {"EXODAQ_STATE", state_name(state)},
+                                    {"EXODAQ_SEQ", seq},
+                                    {"EXODAQ_RUN_ID", run}});
       if (e.joint_event == JointEvent::kHomed) {
-        spdlog::info("joint {} {} (seq {}, angle {:.3f} deg)", name,
-                     joint_event_text(e.joint_event), e.seq, deg);
+        spdlog::info("joint {} {} (seq {}, angle {:.3f} deg){}", name,
+                     joint_event_text(e.joint_event), e.seq, deg, f);
       } else if (e.joint_event == JointEvent::kLostCounts) {
-        spdlog::warn("joint {} {} (seq {}, drift {} counts)", name, joint_event_text(e.joint_event),
-                     e.seq, e.count);
+        spdlog::warn("joint {} {} (seq {}, drift {} counts){}{}", name,
+                     joint_event_text(e.joint_event), e.seq, e.count, f,
+                     fields({{"EXODAQ_DRIFT_COUNTS", std::to_string(e.count)}}));
       } else {
-        spdlog::warn("joint {} {} (seq {}, angle {:.3f} deg)", name,
-                     joint_event_text(e.joint_event), e.seq, deg);
+        spdlog::warn("joint {} {} (seq {}, angle {:.3f} deg){}", name,
+                     joint_event_text(e.joint_event), e.seq, deg, f);
       }
       break;
     }
     case LogEvent::Kind::kOverrun:
-      spdlog::warn("loop overrun at seq {}: cycle took {:.1f} us, {} deadline(s) skipped", e.seq,
-                   e.value, e.count);
+      spdlog::warn("loop overrun at seq {}: cycle took {:.1f} us, {} deadline(s) skipped{}", e.seq,
+                   e.value, e.count,
+                   fields({{"EXODAQ_EVENT", "overrun"},
+                           {"EXODAQ_STATE", state_name(state)},
+                           {"EXODAQ_SEQ", seq},
+                           {"EXODAQ_RUN_ID", run}}));
       break;
     case LogEvent::Kind::kClockStep:
       spdlog::warn(
           "wall clock stepped (step #{} at seq {}): utime is slewed by {:.3f} ms, samples flagged "
-          "CLOCK_STEP meanwhile",
-          e.count, e.seq, e.value);
+          "CLOCK_STEP meanwhile{}",
+          e.count, e.seq, e.value,
+          fields({{"EXODAQ_EVENT", "clock_step"},
+                  {"EXODAQ_STATE", state_name(state)},
+                  {"EXODAQ_SEQ", seq},
+                  {"EXODAQ_RUN_ID", run}}));
       break;
-    case LogEvent::Kind::kStateChange:
-      spdlog::info("service state: {} (seq {})", state_name(e.state), e.seq);
+    case LogEvent::Kind::kStateChange: {
+      const std::string f = fields({{"EXODAQ_EVENT", "state"},
+                                    {"EXODAQ_STATE", state_name(e.state)},
+                                    {"EXODAQ_SEQ", seq},
+                                    {"EXODAQ_RUN_ID", run}});
+      if (e.state == ServiceState::kFault || e.state == ServiceState::kDegraded) {
+        spdlog::warn("service state: {} (seq {}){}", state_name(e.state), e.seq, f);
+      } else {
+        spdlog::info("service state: {} (seq {}){}", state_name(e.state), e.seq, f);
+      }
       break;
+    }
     case LogEvent::Kind::kReloadApplied:
-      spdlog::info("new configuration in effect from seq {}", e.seq);
+      spdlog::info(
+          "new configuration in effect from seq {}{}", e.seq,
+          fields({{"EXODAQ_EVENT", "reload"}, {"EXODAQ_SEQ", seq}, {"EXODAQ_RUN_ID", run}}));
       break;
     case LogEvent::Kind::kEndOfStream:
       spdlog::info("source ended at seq {}", e.seq);
       break;
   }
+}
+
+const char* bus_state_text(drivers::BusState s) {
+  switch (s) {
+    case drivers::BusState::kUnknown:
+      return "";
+    case drivers::BusState::kActive:
+      return ", bus active";
+    case drivers::BusState::kWarning:
+      return ", bus warning";
+    case drivers::BusState::kPassive:
+      return ", bus passive";
+    case drivers::BusState::kOff:
+      return ", BUS-OFF";
+    case drivers::BusState::kDown:
+      return ", interface down";
+  }
+  return "";
+}
+
+// STATUS= for systemctl status: state, loop rate, drops, clock health.
+std::string status_line(Acquisition& acq, double rate_hz) {
+  const auto stats = acq.source().stats();
+  const ClockShared& clock = acq.clock_shared();
+  const char* clock_text = !clock.health_valid.load()  ? "clock health unknown"
+                           : clock.synchronised.load() ? "clock synchronised"
+                                                       : "clock UNSYNCHRONISED";
+  char text[320];
+  std::snprintf(text, sizeof(text),
+                "STATUS=%s, %.1f Hz, cycle %" PRId64 "; drops: %" PRId64
+                " missing samples, %" PRId64 " seq gaps, %" PRId64 " overruns, %" PRId64
+                " publish failures; %" PRId64 " bus errors%s; %s",
+                state_name(acq.state()), rate_hz, acq.cycles(), stats.missing_samples,
+                stats.seq_gaps, acq.overruns(), acq.publisher().failures(), stats.bus_errors,
+                bus_state_text(stats.bus_state), clock_text);
+  return text;
 }
 
 AcquisitionConfig make_acquisition_config(const ServiceConfig& c) {
@@ -192,7 +394,8 @@ int run_daemon(const DaemonOptions& options) {
   sigaddset(&signals, SIGHUP);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  auto logger = make_logger(config.logging, options.log_level);
+  const Logging logging = make_logger(config.logging, options.log_level);
+  const auto& logger = logging.logger;
   AcquisitionConfig acq_config = make_acquisition_config(config);
   if (!options.lateness_log.empty()) {
     const double seconds = options.duration_s > 0 ? options.duration_s + 5.0 : 3600.0;
@@ -207,43 +410,62 @@ int run_daemon(const DaemonOptions& options) {
                                         make_lcm_sink(config.lcm.url), config.lcm.prefix, nullptr);
     acq->start();
   } catch (const std::exception& e) {
-    spdlog::critical("cannot start: {}", e.what());
+    spdlog::critical("cannot start: {}{}", e.what(), fields({{"EXODAQ_EVENT", "start_failed"}}));
     notify("STATUS=cannot start: " + std::string(e.what()));
     logger->flush();
     spdlog::shutdown();
-    std::fprintf(stderr, "exodaqd: cannot start: %s\n", e.what());
+    if (!logging.journal) std::fprintf(stderr, "exodaqd: cannot start: %s\n", e.what());
     return 1;
   }
+  const std::int64_t run_id = acq->run_id();
   spdlog::info(
       "exodaqd {} started: rig {}, source {}, {:.0f} Hz, model {}, calibration {}, LCM {} prefix "
-      "'{}', run id {}",
+      "'{}', run id {}{}",
       exodaq::kVersion, config.rig, drivers::describe(config.source), config.loop.rate_hz,
-      config.model_path, config.calibration_path, config.lcm.url, config.lcm.prefix, acq->run_id());
+      config.model_path, config.calibration_path, config.lcm.url, config.lcm.prefix, run_id,
+      fields({{"EXODAQ_EVENT", "started"},
+              {"EXODAQ_RIG", config.rig},
+              {"EXODAQ_RUN_ID", std::to_string(run_id)},
+              {"EXODAQ_VERSION", exodaq::kVersion}}));
 
-  // Watchdog: ping at half the interval, and only while cycles progress, so a
-  // stalled loop lets systemd's watchdog fire.
+  // Watchdog (WatchdogSec= in the unit): ping at half the interval, and only
+  // while cycles progress, so a stalled loop lets systemd's watchdog fire. A
+  // loop that cycles without samples (state fault) still pings: restarting
+  // would not bring the bus back, and the state says what is wrong.
   std::uint64_t watchdog_usec = 0;
   const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0 && watchdog_usec > 0;
   const std::int64_t watchdog_every_ns = static_cast<std::int64_t>(watchdog_usec) * 1000 / 2;
+  if (watchdog) {
+    spdlog::info("systemd watchdog: {} ms, pinging every {} ms while the loop cycles",
+                 watchdog_usec / 1000, watchdog_every_ns / 1'000'000);
+  }
+  // The main thread wakes at least 4 times per ping interval.
+  const std::int64_t wait_ns =
+      watchdog ? std::clamp<std::int64_t>(watchdog_every_ns / 4, 1'000'000, 20'000'000)
+               : 20'000'000;
   std::int64_t last_ping_ns = mono_now();
   std::int64_t cycles_at_last_ping = 0;
   std::int64_t last_status_ns = mono_now();
   std::int64_t cycles_at_last_status = 0;
+  double rate_hz = 0.0;
+  ServiceState notified_state = ServiceState::kStarting;
   bool ready = false;
   bool realtime_logged = false;
+  bool stall_logged = false;
   const char* stall_env = std::getenv("EXODAQ_TEST_STALL_AFTER_CYCLES");
   const std::int64_t stall_after = stall_env != nullptr ? std::atoll(stall_env) : -1;
 
   int exit_code = 0;
   bool running = true;
   while (running) {
-    timespec wait{0, 20'000'000};
+    timespec wait{0, static_cast<long>(wait_ns)};
     siginfo_t info{};
     const int sig = sigtimedwait(&signals, &info, &wait);
     if (sig == SIGTERM || sig == SIGINT) {
       spdlog::info("{} received: stopping", sig == SIGTERM ? "SIGTERM" : "SIGINT");
       running = false;
     } else if (sig == SIGHUP) {
+      notify("RELOADING=1\nSTATUS=reloading " + options.config_path);
       try {
         ServiceConfig next = load_service_config(options.config_path);
         const std::string fixed = restart_only_changes(config, next);
@@ -253,11 +475,13 @@ int run_daemon(const DaemonOptions& options) {
         spdlog::info("reload: {} and {} accepted", next.calibration_path, next.model_path);
         config = std::move(next);
       } catch (const std::exception& e) {
-        spdlog::error("reload rejected, previous configuration stays: {}", e.what());
+        spdlog::error("reload rejected, previous configuration stays: {}{}", e.what(),
+                      fields({{"EXODAQ_EVENT", "reload_rejected"}}));
       }
+      notify("READY=1\n" + status_line(*acq, rate_hz));
     }
     LogEvent event;
-    while (acq->pop_event(event)) log_event(event, acq_config);
+    while (acq->pop_event(event)) log_event(event, acq_config, run_id, acq->state());
     if (!realtime_logged && acq->cycles() > 0) {
       spdlog::info("loop thread: {}", acq->realtime_report());
       realtime_logged = true;
@@ -266,10 +490,16 @@ int run_daemon(const DaemonOptions& options) {
     const std::int64_t cycles = acq->cycles();
     const std::int64_t now = mono_now();
     if (!ready && cycles > 0) {
-      notify("READY=1\nSTATUS=homing");
+      // The first complete cycle: published, so clients can subscribe now.
+      notify("READY=1\n" + status_line(*acq, rate_hz));
+      notified_state = acq->state();
       ready = true;
     }
-    if (stall_after >= 0 && cycles >= stall_after) acq->set_stall_for_test(true);
+    if (stall_after >= 0 && cycles >= stall_after && !stall_logged) {
+      spdlog::warn("EXODAQ_TEST_STALL_AFTER_CYCLES={}: stalling the loop (test hook)", stall_after);
+      acq->set_stall_for_test(true);
+      stall_logged = true;
+    }
     if (watchdog && now - last_ping_ns >= watchdog_every_ns) {
       if (cycles > cycles_at_last_ping) {
         notify("WATCHDOG=1");
@@ -277,19 +507,17 @@ int run_daemon(const DaemonOptions& options) {
       }
       last_ping_ns = now;
     }
-    if (now - last_status_ns >= 1'000'000'000) {
-      const double rate = static_cast<double>(cycles - cycles_at_last_status) * 1e9 /
-                          static_cast<double>(now - last_status_ns);
-      const auto stats = acq->source().stats();
-      char text[256];
-      std::snprintf(text, sizeof(text),
-                    "STATUS=%s, %.1f Hz, %" PRId64 " missing samples, %" PRId64
-                    " overruns, clock %s",
-                    state_name(acq->state()), rate, stats.missing_samples, acq->overruns(),
-                    acq->clock_shared().synchronised.load() ? "synchronised" : "unsynchronised");
-      notify(text);
+    const bool second = now - last_status_ns >= 1'000'000'000;
+    if (second) {
+      rate_hz = static_cast<double>(cycles - cycles_at_last_status) * 1e9 /
+                static_cast<double>(now - last_status_ns);
       last_status_ns = now;
       cycles_at_last_status = cycles;
+    }
+    // STATUS=: once a second, and at once when the state changes.
+    if (ready && (second || acq->state() != notified_state)) {
+      notified_state = acq->state();
+      notify(status_line(*acq, rate_hz));
     }
     if (options.duration_s > 0 &&
         now - started_ns >= static_cast<std::int64_t>(options.duration_s * 1e9)) {
@@ -301,10 +529,10 @@ int run_daemon(const DaemonOptions& options) {
       running = false;
     }
   }
-  notify("STOPPING=1");
+  notify("STOPPING=1\nSTATUS=stopping");
   acq->stop();
   LogEvent event;
-  while (acq->pop_event(event)) log_event(event, acq_config);
+  while (acq->pop_event(event)) log_event(event, acq_config, run_id, acq->state());
   if (!options.lateness_log.empty()) {
     if (std::FILE* f = std::fopen(options.lateness_log.c_str(), "w")) {
       for (const std::int32_t v : acq->lateness_record()) std::fprintf(f, "%d\n", v);
@@ -313,8 +541,9 @@ int run_daemon(const DaemonOptions& options) {
       spdlog::error("cannot write {}", options.lateness_log);
     }
   }
-  spdlog::info("stopped after {} cycles ({} overruns, {} publish failures)", acq->cycles(),
-               acq->overruns(), acq->publisher().failures());
+  spdlog::info("stopped after {} cycles ({} overruns, {} publish failures){}", acq->cycles(),
+               acq->overruns(), acq->publisher().failures(),
+               fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", std::to_string(run_id)}}));
   logger->flush();
   spdlog::shutdown();
   return exit_code;

@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# The unit's figures (issue 9 point 2), on the unit as installed:
+#   systemd-analyze verify      prints nothing and exits 0
+#   systemd-analyze security --offline=true   overall exposure <= 2.0
+# The project is installed into a fresh staging prefix (cmake --install
+# --prefix STAGE); the install rules point the staged unit's ExecStart= at
+# STAGE/bin/exodaqd and STAGE/etc/exodaq, so verify checks real binaries
+# without a --root holding a whole system (which Debian 12's systemd 252 needs
+# for sysinit.target and /bin/kill). No running systemd is needed.
+# Usage: check_unit.sh BUILD_DIR SOURCE_DIR
+set -euo pipefail
+build=$1
+src=$2
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+stage=$(mktemp -d "${TMPDIR:-/tmp}/exodaq-unit.XXXXXX")
+trap 'rm -rf "$stage"' EXIT
+cmake --install "$build" --prefix "$stage" >"$stage.install.log" 2>&1 ||
+  { cat "$stage.install.log" >&2; fail "cmake --install into $stage"; }
+rm -f "$stage.install.log"
+unit=$stage/lib/systemd/system/exodaqd.service
+[ -f "$unit" ] || fail "no unit at $unit"
+[ -x "$stage/bin/exodaqd" ] || fail "no exodaqd at $stage/bin"
+[ -f "$stage/lib/sysusers.d/exodaq.conf" ] || fail "no sysusers file"
+[ -f "$stage/etc/exodaq/exodaqd.yaml" ] || fail "no /etc/exodaq/exodaqd.yaml"
+
+# The staged unit is the source unit with the install paths moved, nothing else.
+expected=$(sed -e "s#/usr/bin/exodaqd#$stage/bin/exodaqd#g" -e "s#/etc/exodaq/#$stage/etc/exodaq/#g" \
+  "$src/systemd/exodaqd.service")
+[ "$expected" = "$(cat "$unit")" ] || fail "installed unit differs from systemd/exodaqd.service beyond its paths"
+grep -q "^ExecStart=$stage/bin/exodaqd --config $stage/etc/exodaq/exodaqd.yaml\$" "$unit" ||
+  fail "ExecStart not moved to the stage"
+
+# The unit's configuration passes the daemon's own check (ExecStartPre).
+"$stage/bin/exodaqd" --check-config --config "$stage/etc/exodaq/exodaqd.yaml" >/dev/null ||
+  fail "exodaqd --check-config on the installed config"
+
+# 1. verify: exit 0 and not a single line of output (warnings such as
+#    "Unknown key" do not change the exit status, so the output is checked).
+cd "$stage"
+out=$(systemd-analyze verify "$unit" 2>&1) && rc=0 || rc=$?
+echo "systemd-analyze verify: exit $rc, output: '${out}'"
+[ "$rc" -eq 0 ] || fail "verify exit $rc"
+[ -z "$out" ] || fail "verify printed: $out"
+
+# verify does look at the binaries: the same unit with a missing ExecStart fails.
+sed "s#$stage/bin/exodaqd#$stage/bin/missing-exodaqd#g" "$unit" >"$stage/broken.service"
+if systemd-analyze verify "$stage/broken.service" >/dev/null 2>&1; then
+  fail "verify accepted a unit whose binary is missing: the check above proves nothing"
+fi
+
+# 2. security: the exposure figure, and --threshold=20 (exposure x 10) as the gate.
+sec=$(systemd-analyze security --offline=true "$unit" 2>&1) || true
+score=$(printf '%s\n' "$sec" | sed -n 's/.*Overall exposure level for exodaqd.service: \([0-9.]*\).*/\1/p')
+echo "systemd-analyze security --offline=true: exposure $score"
+[ -n "$score" ] || { printf '%s\n' "$sec" >&2; fail "no exposure figure"; }
+systemd-analyze security --offline=true --threshold=20 "$unit" >/dev/null 2>&1 ||
+  { printf '%s\n' "$sec" | grep '✗' >&2; fail "exposure $score > 2.0"; }
+awk -v s="$score" 'BEGIN { exit !(s <= 2.0) }' || fail "exposure $score > 2.0"
+
+# 3. What the issue asks of the unit, and what it must not contain.
+for key in "Type=notify" "WatchdogSec=" "Restart=on-failure" "User=exodaq" "LimitRTPRIO=" \
+  "LimitMEMLOCK=" "ProtectSystem=strict" "NoNewPrivileges=yes" "PrivateTmp=yes" \
+  "PrivateDevices=yes" "ProtectHome=yes" "ProtectKernelTunables=yes" "ProtectKernelModules=yes" \
+  "ProtectKernelLogs=yes" "CapabilityBoundingSet=\$" \
+  "RestrictAddressFamilies=AF_UNIX AF_INET AF_INET6 AF_CAN AF_NETLINK\$" \
+  "SystemCallFilter=@system-service adjtimex" "ExecStartPre=.*--check-config" \
+  "After=.*time-sync.target" "Wants=sys-subsystem-net-devices-can0.device"; do
+  grep -q "^$key" "$unit" || fail "unit lacks $key"
+done
+for key in ProtectClock RestrictRealtime CPUSchedulingPolicy "Requires=.*time-sync"; do
+  if grep -q "^$key" "$unit"; then fail "unit must not set $key"; fi
+done
+# The seccomp filter keeps the syscalls the daemon needs (glibc 2.36's
+# ntp_adjtime is clock_adjtime; SCHED_FIFO and pinning of the loop thread).
+for sc in clock_adjtime sched_setscheduler sched_setaffinity; do
+  grep -q "^SystemCallFilter=.*\b$sc\b" "$unit" || fail "SystemCallFilter drops $sc"
+done
+echo "OK: verify clean, exposure $score"
