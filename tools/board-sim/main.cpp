@@ -91,6 +91,7 @@ struct Faults {
   std::vector<Glitch> glitches;
   int drift_channel = -1;
   std::int64_t drift_counts = 0;
+  Window drift;
   int wrong_dlc_every = 0;
   Window wrong_dlc;
   int duplicate_every = 0;
@@ -109,7 +110,7 @@ constexpr unsigned kWrongDlc = 1U << 4;
 constexpr unsigned kDuplicate = 1U << 5;
 constexpr unsigned kErrorFrame = 1U << 6;
 constexpr unsigned kGlitched = 1U << 7;  // some channel carries a glitch offset
-constexpr unsigned kDrift = 1U << 8;     // an INDEX frame with a drifted count was sent
+constexpr unsigned kDrift = 1U << 8;     // some channel's counter has slipped (index drift)
 constexpr unsigned kBoardError = 1U << 9;
 constexpr unsigned kDelayed = 1U << 10;
 constexpr unsigned kSimLoss = 1U << 11;  // source.sim.loss_percent of the config
@@ -242,14 +243,17 @@ class BoardSim {
       flags |= kStuck;
       ++c_.stuck;
     }
-    // Index drift: every index latch after the first reports a count off by N.
-    if (faults_.drift_channel >= 0 && (bc.index_latched & (1U << faults_.drift_channel))) {
+    // Index drift: from T on, channel C's counter has slipped by N counts
+    // (lost or extra counts too slow for the speed check): only the next index
+    // crossing can reveal it (JOINT_LOST_COUNTS).
+    if (faults_.drift_channel >= 0 && t >= faults_.drift.start_s) {
       const auto ch = static_cast<std::size_t>(faults_.drift_channel);
-      if (drift_seen_++ > 0) {
+      bc.count[ch] += faults_.drift_counts;
+      if (bc.index_latched & (1U << faults_.drift_channel)) {
         bc.index_count[ch] += faults_.drift_counts;
-        flags |= kDrift;
-        ++c_.drifted_index;
+        ++c_.drifted_index;  // index crossings that can reveal the slip
       }
+      flags |= kDrift;
     }
     if (faults_.board_error_bits != 0 && faults_.board_error.contains(t)) {
       bopt.errors |= static_cast<std::uint8_t>(faults_.board_error_bits);
@@ -358,7 +362,6 @@ class BoardSim {
   std::uint8_t base_errors_ = 0;
   bool stuck_valid_ = false;
   std::int64_t stuck_value_ = 0;
-  int drift_seen_ = 0;
   bool glitch_applied_ = false;
 };
 
@@ -366,7 +369,7 @@ void print_counters(const Counters& c) {
   std::fprintf(stderr,
                "BOARD-SIM: cycles=%lld frames=%lld send_failures=%lld dropped=%lld silent=%lld "
                "delayed=%lld stuck=%lld bad_seq=%lld wrong_dlc=%lld duplicates=%lld "
-               "error_frames=%lld glitches=%lld drifted_index=%lld board_error_cycles=%lld "
+               "error_frames=%lld glitches=%lld drift_index_crossings=%lld board_error_cycles=%lld "
                "sim_lost=%lld\n",
                static_cast<long long>(c.cycles), static_cast<long long>(c.frames),
                static_cast<long long>(c.send_failures), static_cast<long long>(c.dropped),
@@ -419,7 +422,8 @@ int main(int argc, char** argv) {
                  "counter of channel C jumps by COUNTS at second T: C:COUNTS@T")
       ->allow_extra_args(false);
   app.add_option("--index-drift", drift,
-                 "every index latch of channel C after the first is off by COUNTS: C:COUNTS");
+                 "channel C's counter slips by COUNTS from second T (seen at its next index): "
+                 "C:COUNTS[@T]");
   app.add_option("--wrong-dlc-every", wrong_dlc,
                  std::string("every Nth cycle's COUNTS_B is sent with DLC 6") + w);
   app.add_option("--duplicate-every", duplicate,
@@ -464,6 +468,7 @@ int main(int argc, char** argv) {
           {std::stoi(v.substr(0, colon)), std::stoll(v.substr(colon + 1)), win.start_s});
     }
     if (!drift.empty()) {
+      drift = split_window(drift, f.drift);
       const auto colon = drift.find(':');
       if (colon == std::string::npos) throw std::invalid_argument("--index-drift C:COUNTS");
       f.drift_channel = std::stoi(drift.substr(0, colon));

@@ -1,0 +1,608 @@
+// exodaq-vcan-check: the subscriber of the vcan VM test (tests/vm). While the
+// daemon runs against exodaq-board-sim over a real kernel vcan interface it
+// records every published joint_state_t / palm_pose_t / encoder_raw_t /
+// status_t and, on its own raw CAN socket, the kernel receive timestamp of
+// every COUNTS frame. At the end (duration or SIGTERM) it checks:
+//   - seq contiguous: every seq missing from the stream is a deadline the loop
+//     skipped (status_t.overruns), nothing lost on the way;
+//   - every sample the source delivered (encoder_raw_t.present) is stamped with
+//     the kernel receive timestamp of a COUNTS frame of its board sequence:
+//     encoder_raw_t.wall_ns exactly (ns), joint_state_t.utime within 1 µs
+//     (the daemon maps mono back to wall with its own offset estimate);
+//   - every palm-valid sample has no invalidating flag and all its angles are
+//     within one count of the board simulator's truth (--truth);
+//   - every fault the board simulator applied (truth fault bits, BOARD-SIM
+//     counters) and every frame cansend injected was counted and flagged;
+//   - the interface down/up was seen (bus_state DOWN, state degraded/fault)
+//     and recovered (bus ACTIVE, state running at the end).
+// Prints a fault table and "VCAN-CHECK: PASS"/"FAIL"; exit 0 only on PASS.
+#include <linux/can.h>
+#include <linux/can/raw.h>
+#include <net/if.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <lcm/lcm-cpp.hpp>
+#include <map>
+#include <numbers>
+#include <sstream>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "exodaq/core/service_config.hpp"
+#include "exodaq/drivers/can_codec.hpp"
+#include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/joint_state_t.hpp"
+#include "exodaq/palm_pose_t.hpp"
+#include "exodaq/status_t.hpp"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) {
+  g_stop.store(true);
+}
+
+std::int64_t mono_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+struct Rec {
+  bool js = false, raw = false, palm = false;
+  std::int64_t utime_js = 0, utime_palm = 0, utime_raw = 0;
+  bool present = false;
+  int board_seq = -1;
+  std::int64_t wall_ns = 0;
+  std::uint32_t source_flags = 0;
+  std::uint32_t sample_flags = 0;
+  std::array<std::uint32_t, 6> jflags{};
+  std::array<bool, 6> homed{};
+  std::array<double, 6> pos{};
+  std::array<std::int16_t, 6> count16{};
+  bool valid = false;
+  std::int64_t k = -1;  // board cycle (truth line) this sample belongs to
+};
+
+struct Truth {
+  std::int64_t k = 0;
+  int seq = 0;
+  double t = 0;
+  std::array<double, 6> q{};
+  std::array<std::int64_t, 6> count{};
+  unsigned faults = 0;
+};
+
+struct CountsFrame {
+  std::uint32_t id = 0;
+  int seq = 0;
+};
+
+class Recorder {
+ public:
+  std::vector<Rec> recs;
+  std::vector<exodaq::status_t> statuses;
+  Rec& at(std::int64_t seq) {
+    if (seq < 0) seq = 0;
+    if (static_cast<std::size_t>(seq) >= recs.size())
+      recs.resize(static_cast<std::size_t>(seq) + 1);
+    return recs[static_cast<std::size_t>(seq)];
+  }
+  void js(const lcm::ReceiveBuffer*, const std::string&, const exodaq::joint_state_t* m) {
+    Rec& r = at(m->seq);
+    r.js = true;
+    r.utime_js = m->utime;
+    r.sample_flags = static_cast<std::uint32_t>(m->sample_flags);
+    for (int i = 0; i < 6; ++i) {
+      r.jflags[static_cast<std::size_t>(i)] = static_cast<std::uint32_t>(m->flags[i]);
+      r.homed[static_cast<std::size_t>(i)] = m->homed[i];
+      r.pos[static_cast<std::size_t>(i)] = m->position[i];
+    }
+  }
+  void raw(const lcm::ReceiveBuffer*, const std::string&, const exodaq::encoder_raw_t* m) {
+    Rec& r = at(m->seq);
+    r.raw = true;
+    r.utime_raw = m->utime;
+    r.present = m->present;
+    r.board_seq = m->board_seq;
+    r.wall_ns = m->wall_ns;
+    r.source_flags = static_cast<std::uint32_t>(m->source_flags);
+    for (int i = 0; i < 6; ++i) r.count16[static_cast<std::size_t>(i)] = m->count16[i];
+  }
+  void palm(const lcm::ReceiveBuffer*, const std::string&, const exodaq::palm_pose_t* m) {
+    Rec& r = at(m->seq);
+    r.palm = true;
+    r.utime_palm = m->utime;
+    r.valid = m->valid;
+  }
+  void status(const lcm::ReceiveBuffer*, const std::string&, const exodaq::status_t* m) {
+    statuses.push_back(*m);
+  }
+};
+
+int open_can(const std::string& iface, const exodaq::drivers::can::ProtocolIds& ids) {
+  const unsigned index = if_nametoindex(iface.c_str());
+  if (index == 0) return -1;
+  const int fd = socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK, CAN_RAW);
+  if (fd < 0) return -1;
+  can_filter f[2]{};
+  f[0].can_id = ids.counts_a_id();
+  f[0].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG;
+  f[1].can_id = ids.counts_b_id();
+  f[1].can_mask = f[0].can_mask;
+  setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, f, sizeof f);
+  const int one = 1;
+  setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);
+  const int buf = 4 << 20;
+  setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &buf, sizeof buf);
+  sockaddr_can addr{};
+  addr.can_family = AF_CAN;
+  addr.can_ifindex = static_cast<int>(index);
+  if (bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) < 0) {
+    close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+std::map<std::string, long long> parse_board_log(const std::string& path) {
+  std::map<std::string, long long> out;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto p = line.find("BOARD-SIM:");
+    if (p == std::string::npos) continue;
+    std::istringstream s(line.substr(p + 10));
+    std::string kv;
+    while (s >> kv) {
+      const auto eq = kv.find('=');
+      if (eq != std::string::npos) out[kv.substr(0, eq)] = std::stoll(kv.substr(eq + 1));
+    }
+  }
+  return out;
+}
+
+int g_failures = 0;
+void check(bool ok, const std::string& what) {
+  std::printf("VCAN-CHECK: %s %s\n", ok ? "ok  " : "FAIL", what.c_str());
+  if (!ok) ++g_failures;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"exodaq-vcan-check: subscriber/checker of the vcan VM test"};
+  std::string config_path, truth_path, board_log, iface = "vcan0", url;
+  double duration = 0;
+  int injected_bad = 0, injected_errors = 0;
+  bool expect_down = false, expect_faults = true;
+  app.add_option("--config", config_path)->required();
+  app.add_option("--truth", truth_path)->required();
+  app.add_option("--board-log", board_log, "exodaq-board-sim's stderr (BOARD-SIM: counters)");
+  app.add_option("--iface", iface);
+  app.add_option("--url", url, "LCM URL (default: the config's)");
+  app.add_option("--duration", duration, "record this long (0: until SIGTERM)");
+  app.add_option("--injected-bad-frames", injected_bad,
+                 "frames cansend injected that the daemon must count as bad");
+  app.add_option("--injected-error-frames", injected_errors, "error frames cansend injected");
+  app.add_flag("--expect-down", expect_down, "the interface was taken down and up");
+  app.add_flag("!--no-faults", expect_faults, "a clean run: no fault may be seen");
+  CLI11_PARSE(app, argc, argv);
+
+  const auto cfg = exodaq::core::load_service_config(config_path);
+  const std::string prefix = cfg.lcm.prefix;
+  if (url.empty()) url = cfg.lcm.url;
+  exodaq::drivers::can::ProtocolIds ids;
+  ids.board = static_cast<std::uint32_t>(cfg.source.socketcan.board);
+
+  lcm::LCM lc(url);
+  if (!lc.good()) {
+    std::printf("VCAN-CHECK: FAIL LCM %s not usable\n", url.c_str());
+    return 1;
+  }
+  Recorder rec;
+  rec.recs.reserve(1 << 16);
+  lc.subscribe(prefix + "EXO_JOINT_STATE", &Recorder::js, &rec);
+  lc.subscribe(prefix + "EXO_ENCODER_RAW", &Recorder::raw, &rec);
+  lc.subscribe(prefix + "EXO_PALM_POSE", &Recorder::palm, &rec);
+  lc.subscribe(prefix + "EXO_STATUS", &Recorder::status, &rec);
+  const int can_fd = open_can(iface, ids);
+  if (can_fd < 0) {
+    std::printf("VCAN-CHECK: FAIL cannot open a raw CAN socket on %s: %s\n", iface.c_str(),
+                std::strerror(errno));
+    return 1;
+  }
+  std::unordered_multimap<std::int64_t, CountsFrame> stamps;
+  stamps.reserve(1 << 17);
+  std::signal(SIGTERM, on_signal);
+  std::signal(SIGINT, on_signal);
+  std::printf("VCAN-CHECK: recording (%s, %s)\n", url.c_str(), iface.c_str());
+  std::fflush(stdout);
+  const std::int64_t end =
+      duration > 0 ? mono_ns() + static_cast<std::int64_t>(duration * 1e9) : INT64_MAX;
+  while (!g_stop.load() && mono_ns() < end) {
+    pollfd p[2] = {{lc.getFileno(), POLLIN, 0}, {can_fd, POLLIN, 0}};
+    if (poll(p, 2, 50) <= 0) continue;
+    if (p[0].revents & POLLIN) lc.handle();
+    if (p[1].revents & (POLLIN | POLLERR)) {
+      for (;;) {
+        can_frame cf{};
+        char ctrl[CMSG_SPACE(sizeof(timespec)) + 64];
+        iovec iov{&cf, sizeof cf};
+        msghdr m{};
+        m.msg_iov = &iov;
+        m.msg_iovlen = 1;
+        m.msg_control = ctrl;
+        m.msg_controllen = sizeof ctrl;
+        const ssize_t n = recvmsg(can_fd, &m, MSG_DONTWAIT);
+        if (n < 0) break;  // EAGAIN, or ENETDOWN once when the link goes down
+        if (n != sizeof cf || cf.can_dlc != 8) continue;
+        for (cmsghdr* c = CMSG_FIRSTHDR(&m); c; c = CMSG_NXTHDR(&m, c)) {
+          if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_TIMESTAMPNS) {
+            timespec ts{};
+            std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+            stamps.emplace(static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec,
+                           CountsFrame{cf.can_id & CAN_SFF_MASK, cf.data[7]});
+          }
+        }
+      }
+    }
+  }
+  // Let the last messages in flight arrive.
+  for (int i = 0; i < 20; ++i) lc.handleTimeout(10);
+
+  // --- truth -----------------------------------------------------------
+  std::vector<Truth> truth;
+  {
+    std::ifstream in(truth_path);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.empty() || line[0] == '#') continue;
+      std::istringstream s(line);
+      Truth t;
+      s >> t.k >> t.seq >> t.t;
+      for (double& q : t.q) s >> q;
+      for (auto& c : t.count) s >> c;
+      s >> t.faults;
+      if (s) truth.push_back(t);
+    }
+  }
+  const auto board =
+      board_log.empty() ? std::map<std::string, long long>{} : parse_board_log(board_log);
+  auto bcount = [&](const char* key) {
+    const auto it = board.find(key);
+    return it == board.end() ? 0LL : it->second;
+  };
+  std::printf(
+      "VCAN-CHECK: %zu cycles published (seq 0..%zu), %zu status, %zu COUNTS frames "
+      "stamped, %zu truth cycles\n",
+      rec.recs.size(), rec.recs.empty() ? 0 : rec.recs.size() - 1, rec.statuses.size(),
+      stamps.size(), truth.size());
+  const auto rate = static_cast<std::int64_t>(cfg.loop.rate_hz);
+  check(!truth.empty() && !rec.statuses.empty() &&
+            static_cast<std::int64_t>(rec.recs.size()) > 5 * rate,
+        "ran >= 5 s with data on every side");
+  if (truth.empty() || rec.statuses.empty()) {
+    std::printf("VCAN-CHECK: FAIL\n");
+    return 1;
+  }
+  const exodaq::status_t& last = rec.statuses.back();
+
+  // --- seq contiguity ----------------------------------------------------
+  std::int64_t first = -1, holes = 0, incomplete = 0, lastseq = -1;
+  const auto covered = static_cast<std::size_t>(
+      std::min<std::int64_t>(last.seq + 1, static_cast<std::int64_t>(rec.recs.size())));
+  for (std::size_t s = 0; s < covered; ++s) {
+    const Rec& r = rec.recs[s];
+    const bool any = r.js || r.raw || r.palm;
+    if (!any) {
+      if (first >= 0) ++holes;
+      continue;
+    }
+    if (first < 0) first = static_cast<std::int64_t>(s);
+    lastseq = static_cast<std::int64_t>(s);
+    if (!(r.js && r.raw && r.palm)) ++incomplete;
+  }
+  std::printf(
+      "VCAN-CHECK: seq %lld..%lld (up to the last status), %lld holes, daemon overruns "
+      "(skipped deadlines) %lld\n",
+      static_cast<long long>(first), static_cast<long long>(lastseq), static_cast<long long>(holes),
+      static_cast<long long>(last.overruns));
+  check(holes <= last.overruns, "every seq hole is a counted skipped deadline (holes " +
+                                    std::to_string(holes) + " <= overruns " +
+                                    std::to_string(last.overruns) + ")");
+  check(incomplete == 0,
+        "each cycle's three messages all arrived (" + std::to_string(incomplete) + " incomplete)");
+
+  // --- board cycle of every sample (board_seq unwrapped) -----------------
+  std::int64_t k = -1;
+  int prev_seq = -1;
+  std::int64_t last_present_seq = -1;
+  for (std::size_t s = 0; s < rec.recs.size(); ++s) {
+    Rec& r = rec.recs[s];
+    if (!r.raw) continue;
+    if (r.present && r.board_seq >= 0) {
+      if (k < 0) {
+        k = r.board_seq;
+      } else {
+        k += static_cast<std::int8_t>(static_cast<std::uint8_t>(r.board_seq - prev_seq));
+      }
+      prev_seq = r.board_seq;
+      last_present_seq = static_cast<std::int64_t>(s);
+      r.k = k;
+    } else if (k >= 0) {
+      r.k = k + (static_cast<std::int64_t>(s) - last_present_seq);  // estimate
+    }
+  }
+  auto truth_at = [&](std::int64_t kk) -> const Truth* {
+    if (kk < 0 || static_cast<std::size_t>(kk) >= truth.size()) return nullptr;
+    return &truth[static_cast<std::size_t>(kk)];
+  };
+
+  // --- timestamps and angles ----------------------------------------------
+  const double two_pi = 2.0 * std::numbers::pi;
+  std::array<double, 6> one_count{};
+  for (int j = 0; j < 6; ++j) {
+    one_count[static_cast<std::size_t>(j)] =
+        two_pi / (static_cast<double>(cfg.encoders.counts_per_rev()) *
+                  cfg.encoders.joints[static_cast<std::size_t>(j)].gear_ratio);
+  }
+  std::int64_t present = 0, stamp_found = 0, stamp_seq_ok = 0, utime_exact = 0, utime_1us = 0,
+               palm_same = 0, valid = 0, valid_flagged = 0, valid_wrong = 0, valid_checked = 0,
+               count_exact = 0, count_checked = 0;
+  double worst_counts = 0;
+  int utime_reported = 0;
+  // Board faults that make its counts differ from the physical truth on
+  // purpose (stuck, glitch, index drift): valid samples there are reported,
+  // not compared (a slip is only detectable at the next index crossing).
+  constexpr unsigned kCountCorrupting = (1U << 2) | (1U << 7) | (1U << 8);
+  std::int64_t valid_corrupted = 0, valid_corrupted_off = 0;
+  std::int64_t complete = 0;
+  const Rec* prev = nullptr;
+  for (const Rec& r : rec.recs) {
+    if (!(r.js && r.raw && r.palm)) continue;
+    ++complete;
+    struct Prev {
+      const Rec*& p;
+      const Rec& r;
+      ~Prev() { p = &r; }
+    } remember{prev, r};
+    if (r.utime_palm == r.utime_js && r.utime_raw == r.utime_js) ++palm_same;
+    if (r.present) {
+      ++present;
+      const auto range = stamps.equal_range(r.wall_ns);
+      if (range.first != range.second) {
+        ++stamp_found;
+        for (auto it = range.first; it != range.second; ++it) {
+          if (it->second.seq == r.board_seq) {
+            ++stamp_seq_ok;
+            break;
+          }
+        }
+      }
+      const std::int64_t kus = r.wall_ns / 1000;
+      if (r.utime_js == kus) ++utime_exact;
+      if (std::llabs(r.utime_js - kus) <= 1) {
+        ++utime_1us;
+      } else if (utime_reported++ < 10) {
+        std::printf(
+            "VCAN-CHECK: utime %lld vs kernel stamp %lld us (%+lld us), board seq %d, "
+            "flags 0x%x\n",
+            static_cast<long long>(r.utime_js), static_cast<long long>(kus),
+            static_cast<long long>(r.utime_js - kus), r.board_seq, r.sample_flags);
+      }
+      const Truth* t = truth_at(r.k);
+      if (t != nullptr && t->faults == 0 && (r.source_flags & 0x200) == 0) {
+        // Raw counts on the wire equal the board's true counts (by channel).
+        ++count_checked;
+        bool all = true;
+        for (int c = 0; c < 6; ++c) {
+          all =
+              all && static_cast<std::uint16_t>(r.count16[static_cast<std::size_t>(c)]) ==
+                         static_cast<std::uint16_t>(t->count[static_cast<std::size_t>(c)] & 0xFFFF);
+        }
+        if (all) ++count_exact;
+      }
+    }
+    if (!r.valid) continue;
+    ++valid;
+    bool flagged = (r.sample_flags & (1U | 16U | 32U | 512U)) != 0 || !r.present;
+    for (int j = 0; j < 6; ++j) {
+      flagged = flagged || r.jflags[static_cast<std::size_t>(j)] != 0 ||
+                !r.homed[static_cast<std::size_t>(j)];
+    }
+    if (flagged) ++valid_flagged;
+    const Truth* t = truth_at(r.k);
+    if (t == nullptr) continue;
+    bool wrong = false;
+    double worst = 0;
+    for (int j = 0; j < 6; ++j) {
+      const auto jj = static_cast<std::size_t>(j);
+      const double err = std::fabs(r.pos[jj] - t->q[jj]) / one_count[jj];
+      worst = std::max(worst, err);
+      wrong = wrong || err > 1.0 + 1e-6;
+    }
+    if ((t->faults & kCountCorrupting) != 0) {
+      ++valid_corrupted;
+      if (wrong) ++valid_corrupted_off;
+      continue;
+    }
+    ++valid_checked;
+    worst_counts = std::max(worst_counts, worst);
+    if (wrong) ++valid_wrong;
+  }
+  std::printf(
+      "VCAN-CHECK: %lld present samples: wall_ns == a COUNTS frame's kernel stamp: %lld "
+      "(of its board seq: %lld); utime == stamp/1000: %lld exactly, %lld within 1 us\n",
+      static_cast<long long>(present), static_cast<long long>(stamp_found),
+      static_cast<long long>(stamp_seq_ok), static_cast<long long>(utime_exact),
+      static_cast<long long>(utime_1us));
+  check(present > 4 * rate, "more than 4 s of samples delivered");
+  check(stamp_seq_ok == present,
+        "every delivered sample carries the kernel RX timestamp of a COUNTS frame of its seq");
+  check(utime_1us == present, "every delivered sample's utime is that kernel stamp (within 1 us)");
+  check(palm_same == complete,
+        "joint_state, palm_pose and encoder_raw of a cycle carry the same utime");
+  check(count_checked > 4 * rate && count_exact == count_checked,
+        "wire counts equal the simulator's counts (" + std::to_string(count_exact) + "/" +
+            std::to_string(count_checked) + ")");
+  std::printf("VCAN-CHECK: %lld valid samples, %lld compared with truth, worst error %.3f counts\n",
+              static_cast<long long>(valid), static_cast<long long>(valid_checked), worst_counts);
+  std::printf(
+      "VCAN-CHECK: %lld valid samples while the board's counts were deliberately "
+      "corrupted (stuck/glitch/drift): %lld of them off by more than one count\n",
+      static_cast<long long>(valid_corrupted), static_cast<long long>(valid_corrupted_off));
+  check(valid_checked > rate && valid_checked + valid_corrupted == valid,
+        "valid samples exist and all map to truth");
+  check(valid_flagged == 0, "no flagged (or unhomed) sample published as valid (" +
+                                std::to_string(valid_flagged) + ")");
+  check(valid_wrong == 0,
+        "every valid sample within one count of truth (" + std::to_string(valid_wrong) + " off)");
+
+  // --- faults --------------------------------------------------------------
+  // Published flags per fault window: samples whose board cycle is within
+  // [first faulted k, last faulted k + 60] of each truth fault bit.
+  auto window_flags = [&](unsigned bit, std::uint32_t sample_bits, std::uint32_t joint_bits,
+                          int joint, std::int64_t& applied, std::int64_t& flagged_samples,
+                          std::int64_t& valid_in_window) {
+    std::int64_t lo = -1, hi = -1;
+    applied = 0;
+    for (const Truth& t : truth) {
+      if ((t.faults & bit) == 0) continue;
+      ++applied;
+      if (lo < 0) lo = t.k;
+      hi = t.k;
+    }
+    flagged_samples = 0;
+    valid_in_window = 0;
+    if (lo < 0) return;
+    for (const Rec& r : rec.recs) {
+      if (!r.js || r.k < lo || r.k > hi + 60) continue;
+      bool f = (r.sample_flags & sample_bits) != 0;
+      if (joint >= 0) f = f || (r.jflags[static_cast<std::size_t>(joint)] & joint_bits) != 0;
+      if (joint < 0 && joint_bits != 0) {
+        for (auto jf : r.jflags) f = f || (jf & joint_bits) != 0;
+      }
+      if (f) ++flagged_samples;
+      bool invalidating = (r.sample_flags & (1U | 16U | 32U | 512U)) != 0;
+      for (auto jf : r.jflags) invalidating = invalidating || jf != 0;
+      if (invalidating && r.valid) ++valid_in_window;
+    }
+  };
+  struct Row {
+    const char* name;
+    unsigned bit;
+    std::uint32_t sample_bits;
+    std::uint32_t joint_bits;
+    int joint;
+    const char* counter;
+  };
+  // Joint index of a channel (for per-joint flags).
+  auto joint_of = [&](int channel) {
+    for (int j = 0; j < 6; ++j) {
+      if (cfg.encoders.joints[static_cast<std::size_t>(j)].channel == channel) return j;
+    }
+    return -1;
+  };
+  const std::vector<Row> rows = {
+      {"drop", 1U << 0, 1U | 2U, 0, -1, "dropped"},
+      {"burst silence", 1U << 1, 1U | 2U, 2U, -1, "silent"},
+      {"stuck channel", 1U << 2, 16U, 128U, -1, "stuck"},
+      {"bad sequence", 1U << 3, 2U | 8U | 4U, 0, -1, "bad_seq"},
+      {"wrong DLC", 1U << 4, 512U, 0, -1, "wrong_dlc"},
+      {"duplicate", 1U << 5, 4U, 0, -1, "duplicates"},
+      {"error frames", 1U << 6, 32U, 0, -1, "error_frames"},
+      {"glitch", 1U << 7, 0, 4U | 16U, -1, "glitches"},
+      {"index drift", 1U << 8, 0, 16U, -1, "drift_index_crossings"},
+      {"board error", 1U << 9, 16U, 128U, -1, "board_error_cycles"},
+      {"delay > deadline", 1U << 10, 1U, 0, -1, "delayed"},
+  };
+  (void)joint_of;
+  std::printf("VCAN-CHECK: fault table\n");
+  std::printf(
+      "VCAN-CHECK: | fault | board-sim applied | samples with its flag | invalidated "
+      "sample published valid |\n");
+  for (const Row& row : rows) {
+    std::int64_t applied = 0, flagged = 0, bad_valid = 0;
+    window_flags(row.bit, row.sample_bits, row.joint_bits, row.joint, applied, flagged, bad_valid);
+    const long long counted = bcount(row.counter);
+    std::printf("VCAN-CHECK: | %s | %lld (truth %lld) | %lld | %lld |\n", row.name, counted,
+                static_cast<long long>(applied), static_cast<long long>(flagged),
+                static_cast<long long>(bad_valid));
+    if (!expect_faults) {
+      check(applied == 0, std::string(row.name) + ": none applied in a clean run");
+      continue;
+    }
+    if (applied == 0) continue;
+    check(flagged > 0, std::string(row.name) + ": flagged on published samples");
+    check(bad_valid == 0, std::string(row.name) + ": no flagged sample valid");
+  }
+  // Status counters (final status) against what was injected.
+  std::printf(
+      "VCAN-CHECK: status: frames %lld bad_frames %lld missing %lld seq_gaps %lld "
+      "duplicates %lld out_of_order %lld bus_errors %lld rx_overflows %lld bus_state %d "
+      "state %d\n",
+      static_cast<long long>(last.frames), static_cast<long long>(last.bad_frames),
+      static_cast<long long>(last.missing_samples), static_cast<long long>(last.seq_gaps),
+      static_cast<long long>(last.duplicates), static_cast<long long>(last.out_of_order),
+      static_cast<long long>(last.bus_errors), static_cast<long long>(last.rx_overflows),
+      last.bus_state, last.state);
+  check(last.bad_frames == bcount("wrong_dlc") + injected_bad,
+        "bad_frames == board wrong-DLC frames + cansend malformed frames (" +
+            std::to_string(last.bad_frames) + " == " + std::to_string(bcount("wrong_dlc")) + " + " +
+            std::to_string(injected_bad) +
+            "; the unknown ID outside the board's block is "
+            "filtered by the kernel)");
+  check(last.bus_errors == bcount("error_frames") + injected_errors,
+        "bus_errors == board error frames + cansend error frames (" +
+            std::to_string(last.bus_errors) + ")");
+  check(last.duplicates >= bcount("duplicates"), "duplicates counted");
+  if (expect_faults) {
+    check(last.seq_gaps > 0 && last.missing_samples >= bcount("dropped") + bcount("silent"),
+          "seq gaps and missing samples counted (missing " + std::to_string(last.missing_samples) +
+              " >= dropped + silent " + std::to_string(bcount("dropped") + bcount("silent")) + ")");
+    check(last.out_of_order + last.seq_gaps > 0, "bad sequences counted");
+  }
+  // Bus state history.
+  bool saw_off = false, saw_down = false, degraded_after_down = false;
+  for (const auto& s : rec.statuses) {
+    if (s.bus_state == exodaq::status_t::BUS_OFF) saw_off = true;
+    if (s.bus_state == exodaq::status_t::BUS_DOWN) saw_down = true;
+    if (saw_down &&
+        (s.state == exodaq::status_t::STATE_DEGRADED || s.state == exodaq::status_t::STATE_FAULT)) {
+      degraded_after_down = true;
+    }
+  }
+  if (injected_errors > 0) check(saw_off, "bus-off error frame seen as bus_state OFF");
+  if (expect_down) {
+    check(saw_down, "interface down seen as bus_state DOWN");
+    check(degraded_after_down, "service degraded while the interface was down");
+  }
+  check(last.bus_state == exodaq::status_t::BUS_ACTIVE, "bus ACTIVE at the end");
+  const exodaq::status_t& before =
+      rec.statuses.size() > 1 ? rec.statuses[rec.statuses.size() - 2] : last;
+  std::printf(
+      "VCAN-CHECK: loop timing in the last window: period p50 %.0f p99 %.0f us, lateness "
+      "p99 %.0f max %.0f us, work p99 %.0f us; overruns %lld (window %lld)\n",
+      last.period_p50_us, last.period_p99_us, last.lateness_p99_us, last.lateness_max_us,
+      last.work_p99_us, static_cast<long long>(last.overruns),
+      static_cast<long long>(last.overruns - before.overruns));
+  // Degraded only because the loop itself overran in the last window (an
+  // emulated CPU) still counts as recovered from the bus's point of view.
+  check(last.state == exodaq::status_t::STATE_RUNNING ||
+            (last.state == exodaq::status_t::STATE_DEGRADED && last.overruns > before.overruns),
+        "service recovered at the end (state " + std::to_string(last.state) + ")");
+  std::printf("VCAN-CHECK: %s (%d failed)\n", g_failures == 0 ? "PASS" : "FAIL", g_failures);
+  return g_failures == 0 ? 0 : 1;
+}
