@@ -99,6 +99,8 @@ set(CPACK_DEBIAN_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 set(CPACK_DEB_COMPONENT_INSTALL OFF)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+# RelWithDebInfo binaries carry about 70 MB of debug information: the package does not.
+set(CPACK_STRIP_FILES ON)
 # systemd: systemd-sysusers in postinst and the unit; the rest is for clients and the rig.
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "systemd")
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "chrony | time-daemon, can-utils")
