@@ -7,10 +7,14 @@
 // thread's work is not the loop's).
 //
 //   bench_cycle [benchmark flags]        Google Benchmark (means): BM_Cycle, BM_SimSourceRead
-//   bench_cycle --harness [--cycles N] [--json FILE]
+//   bench_cycle --harness [--cycles N] [--paced N] [--json FILE]
 //        times every cycle with clock_gettime (p50/p99/p99.9/max) and counts
 //        heap allocations (operator new + malloc, tests/support/alloc_counter)
-//        over the timed cycles. Used by bench/run.
+//        over the timed cycles, back to back (hot caches). Then N cycles
+//        paced at the config's period on CLOCK_MONOTONIC deadlines, as the
+//        loop runs them: first with the ring drained inline after each timed
+//        cycle, then with the publisher thread running (each commit's
+//        sem_post then wakes it, as in exodaqd). Used by bench/run.
 #include <benchmark/benchmark.h>
 #include <time.h>
 
@@ -184,7 +188,37 @@ std::string json_of(const Stats& s) {
   return buf;
 }
 
-int harness(std::int64_t cycles, const std::string& json_path) {
+void sleep_until(std::int64_t t) noexcept {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(t / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(t % 1'000'000'000);
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) != 0) {
+  }
+}
+
+// `n` cycles, one per period on real deadlines (caches and predictors go cold
+// between them, as in the daemon). With `publisher_thread`, the publisher
+// thread hands the messages over (the sink counts them) and the loop's
+// sem_posts wake it.
+std::vector<std::int64_t> paced(std::int64_t n, bool publisher_thread) {
+  Rig rig;
+  rig.warm_up(15'000, 60'000);
+  if (publisher_thread) rig.acq->publisher().start();
+  std::vector<std::int64_t> d;
+  d.reserve(static_cast<std::size_t>(n));
+  std::int64_t deadline = mono_now() + rig.period_ns;
+  for (std::int64_t i = 0; i < n; ++i, deadline += rig.period_ns) {
+    sleep_until(deadline);
+    const std::int64_t a = mono_now();
+    rig.cycle();
+    d.push_back(mono_now() - a);
+    if (!publisher_thread) rig.acq->publisher().drain();
+  }
+  if (publisher_thread) rig.acq->publisher().stop();
+  return d;
+}
+
+int harness(std::int64_t cycles, std::int64_t paced_cycles, const std::string& json_path) {
   Rig rig;
   rig.warm_up(15'000, 60'000);
   const bool running = rig.acq->state() == core::ServiceState::kRunning;
@@ -243,6 +277,9 @@ int harness(std::int64_t cycles, const std::string& json_path) {
     timer.push_back(mono_now() - a);
   }
 
+  const auto paced_inline = paced(paced_cycles, false);
+  const auto paced_thread = paced(paced_cycles, true);
+
   std::string j = "{\n";
   j += "  \"cycles\": " + std::to_string(cycles) + ",\n";
   j += "  \"warmup_cycles\": " + std::to_string(warmup) + ",\n";
@@ -254,6 +291,8 @@ int harness(std::int64_t cycles, const std::string& json_path) {
   j += "  \"cycle_with_status\": " + json_of(stats_of(status)) + ",\n";
   j += "  \"sim_source_read\": " + json_of(stats_of(source_read)) + ",\n";
   j += "  \"clock_gettime_pair\": " + json_of(stats_of(timer)) + ",\n";
+  j += "  \"paced_cycle\": " + json_of(stats_of(paced_inline)) + ",\n";
+  j += "  \"paced_cycle_publisher_thread\": " + json_of(stats_of(paced_thread)) + ",\n";
   j += "  \"allocations_loop_thread\": " + std::to_string(thread_allocs) + ",\n";
   j += "  \"allocations_process\": " + std::to_string(proc_allocs) + ",\n";
   j += "  \"allocations_per_cycle\": " +
@@ -278,6 +317,7 @@ int harness(std::int64_t cycles, const std::string& json_path) {
 int main(int argc, char** argv) {
   bool run_harness = false;
   std::int64_t cycles = 100'000;
+  std::int64_t paced_cycles = 5'000;
   std::string json_path;
   std::vector<char*> rest{argv[0]};
   for (int i = 1; i < argc; ++i) {
@@ -286,13 +326,17 @@ int main(int argc, char** argv) {
       run_harness = true;
     } else if (a == "--cycles" && i + 1 < argc) {
       cycles = std::atoll(argv[++i]);
+    } else if (a == "--paced" && i + 1 < argc) {
+      paced_cycles = std::atoll(argv[++i]);
     } else if (a == "--json" && i + 1 < argc) {
       json_path = argv[++i];
     } else {
       rest.push_back(argv[i]);
     }
   }
-  if (run_harness) return harness(std::max<std::int64_t>(cycles, 1), json_path);
+  if (run_harness)
+    return harness(std::max<std::int64_t>(cycles, 1), std::max<std::int64_t>(paced_cycles, 1),
+                   json_path);
   int n = static_cast<int>(rest.size());
   benchmark::Initialize(&n, rest.data());
   if (benchmark::ReportUnrecognizedArguments(n, rest.data())) return 1;
