@@ -8,6 +8,7 @@ sim::SimOptions sim_options_from(const SourceOptions& options, const SourceConte
   o.period_ns = ctx.period_ns;
   o.jitter_ns = static_cast<std::int64_t>(options.sim.jitter_us * 1000.0);
   o.loss_percent = options.sim.loss_percent;
+  o.faults = options.sim.faults;
   // The simulated rig is the configured one: its encoders sit on the
   // configured channels with the configured direction and gearing, and each
   // index at the calibration's delta_theta0, so a homed joint reads the truth.

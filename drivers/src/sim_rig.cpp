@@ -328,8 +328,53 @@ SimRig::SimRig(const SimOptions& options)
     : options_(checked(options)),
       motion_(seeded(options), index_angles(options), index_periods(options)),
       encoders_(options.encoders, motion_.position(0.0)),
-      board_(options.board) {
+      board_(options.board),
+      base_errors_(options.board.errors) {
+  for (const SimFault& f : options_.faults) {
+    if (f.joint < 0 || f.joint >= kJoints) bad("fault: joint must be 0..5");
+    if (f.start_s < 0.0) bad("fault: start_s must be >= 0");
+    if (f.percent < 0.0 || f.percent > 100.0) bad("fault: percent must be in [0, 100]");
+  }
   options_.jitter_ns = std::min(options_.jitter_ns, (options_.period_ns - 1) / 2);
+}
+
+std::int64_t SimRig::fault_count_offset(int j, double t_s, std::int64_t k) const noexcept {
+  std::int64_t offset = 0;
+  for (const SimFault& f : options_.faults) {
+    if (f.joint != j || t_s < f.start_s) continue;
+    const double into = t_s - f.start_s;
+    switch (f.kind) {
+      case SimFault::Kind::kCountOffset:
+        offset += f.counts;
+        break;
+      case SimFault::Kind::kCountRamp: {
+        // One count per cycle: k cycles since the start cycle.
+        const auto start_k = static_cast<std::int64_t>(
+            std::ceil(f.start_s * 1e9 / static_cast<double>(options_.period_ns)));
+        const std::int64_t n = std::min<std::int64_t>(k - start_k + 1, std::llabs(f.counts));
+        offset += f.counts >= 0 ? std::max<std::int64_t>(n, 0) : -std::max<std::int64_t>(n, 0);
+        break;
+      }
+      default:
+        break;
+    }
+  }
+  return offset;
+}
+
+double SimRig::fault_excursion_rad(int j, double t_s) const noexcept {
+  double angle = 0.0;
+  for (const SimFault& f : options_.faults) {
+    if (f.kind != SimFault::Kind::kExcursion || f.joint != j || t_s < f.start_s) continue;
+    const double into = t_s - f.start_s;
+    if (f.duration_s <= 0.0 || into >= f.duration_s) continue;
+    const double x = into / f.duration_s;  // 0..1: out the first half, back the second
+    const double shape = x < 0.5 ? 2.0 * x : 2.0 * (1.0 - x);
+    const auto& e = encoders_.params(j);
+    angle += shape * static_cast<double>(f.counts) * 2.0 * std::numbers::pi /
+             (static_cast<double>(e.counts_per_rev) * e.gear_ratio);
+  }
+  return angle;
 }
 
 std::int64_t SimRig::sample_offset_ns(std::int64_t k) const noexcept {
@@ -357,7 +402,11 @@ bool SimRig::cycle_partial(std::int64_t k) const noexcept {
 int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_ns,
                  std::int64_t wall_offset_ns) noexcept {
   const std::int64_t t_ns = sample_offset_ns(k);
-  encoders_.update(motion_.position(static_cast<double>(t_ns) * 1e-9));
+  // The joints where they really are: the motion plus any scripted excursion.
+  Vec6 theta = motion_.position(static_cast<double>(t_ns) * 1e-9);
+  for (int j = 0; j < kJoints; ++j)
+    theta[u(j)] += fault_excursion_rad(j, static_cast<double>(t_ns) * 1e-9);
+  encoders_.update(theta);
   BoardCycle c;
   for (int j = 0; j < kJoints; ++j) {
     const auto ch = u(encoders_.params(j).channel);
@@ -367,9 +416,69 @@ int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_
       c.index_count[ch] = encoders_.latched_count(j);
     }
   }
+  // Scripted faults (SimOptions::faults).
+  const double t_s = static_cast<double>(t_ns) * 1e-9;
+  bool silent = false;
+  bool dropped = false;
+  bool partial = false;
+  bool duplicate = false;
+  std::uint8_t errors = base_errors_;
+  std::array<bool, kJoints> stuck{};
+  for (const SimFault& f : options_.faults) {
+    const bool active = t_s >= f.start_s && (f.duration_s <= 0.0 || t_s < f.start_s + f.duration_s);
+    if (!active) continue;
+    switch (f.kind) {
+      case SimFault::Kind::kStuck:
+        stuck[u(f.joint)] = true;
+        break;
+      case SimFault::Kind::kSilence:
+        silent = true;
+        break;
+      case SimFault::Kind::kDrop:
+        dropped = dropped ||
+                  unit_random(options_.seed, 4, static_cast<std::uint64_t>(k)) * 100.0 < f.percent;
+        break;
+      case SimFault::Kind::kPartial:
+        partial = true;
+        break;
+      case SimFault::Kind::kDuplicate:
+        duplicate = true;
+        break;
+      case SimFault::Kind::kBoardError:
+        errors = static_cast<std::uint8_t>(errors | f.error_bits);
+        break;
+      default:
+        break;
+    }
+  }
+  for (int j = 0; j < kJoints; ++j) {
+    const auto ch = u(encoders_.params(j).channel);
+    const std::int64_t offset = fault_count_offset(j, t_s, k);
+    c.count[ch] += offset;
+    c.index_count[ch] += offset;
+    if (stuck[u(j)]) {
+      if (!stuck_[u(j)]) stuck_count_[u(j)] = c.count[ch];
+      c.count[ch] = stuck_count_[u(j)];
+      c.index_latched &= ~(1U << ch);  // a dead channel latches nothing
+    }
+    stuck_[u(j)] = stuck[u(j)];
+  }
+  board_.options().errors = errors;
+
   int n = board_.make_cycle(k, c, out);
-  if (cycle_lost(k)) return 0;
-  if (cycle_partial(k)) {  // drop COUNTS_B
+  if (cycle_lost(k) || silent || dropped) return 0;
+  if (duplicate && n < static_cast<int>(out.size())) {
+    const std::uint32_t a = board_.options().ids.counts_a_id();
+    for (int i = 0; i < n; ++i) {
+      if (out[u(i)].id == a) {
+        for (int m = n; m > i + 1; --m) out[u(m)] = out[u(m - 1)];
+        out[u(i + 1)] = out[u(i)];
+        ++n;
+        break;
+      }
+    }
+  }
+  if (cycle_partial(k) || partial) {  // drop COUNTS_B
     const std::uint32_t b = board_.options().ids.counts_b_id();
     int w = 0;
     for (int i = 0; i < n; ++i) {

@@ -23,6 +23,7 @@ std::string describe(const SourceOptions& o) {
     case SourceBackend::kSim:
       s << ", seed: " << o.sim.seed << ", loss_percent: " << o.sim.loss_percent
         << ", jitter_us: " << o.sim.jitter_us;
+      if (!o.sim.faults.empty()) s << ", faults: " << o.sim.faults.size();
       break;
     case SourceBackend::kSocketCan:
       s << ", interface: " << o.socketcan.interface << ", sync_master: "

@@ -304,7 +304,9 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
     if (recorded >= 0) seq_ = recorded;
   }
   if (!sample_.present) {
-    sample_.mono_ns = deadline_ns;  // the instant the sample was due
+    // The instant the sample was due: the source's own stamp for the lost
+    // cycle when it has one (the sim does), else the deadline.
+    if (sample_.mono_ns <= last_emitted_mono_ns_) sample_.mono_ns = deadline_ns;
   } else {
     last_sample_mono_ns_ = wake_ns;
   }
@@ -350,6 +352,7 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   pipeline_.process(sample_, extra, clock_invalid, result_);
   result_.seq = seq_;
   result_.mono_ns = sample_.mono_ns;
+  last_emitted_mono_ns_ = sample_.mono_ns;
   result_.utime_us = utime_us;
   encode_cycle(sample_);
 
@@ -389,7 +392,9 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   cycles_.fetch_add(1, std::memory_order_relaxed);
   const std::int64_t end = mono_now();
   work_window_.add(end - wake_ns);
-  if (seq_ % config_.status_every_cycles == 0) finish_window(end);
+  // The window closes on the cycle's own clock (the simulated one when tests
+  // drive cycles by hand), so state decisions are reproducible.
+  if (seq_ % config_.status_every_cycles == 0) finish_window(wake_ns);
   return true;
 }
 

@@ -65,6 +65,41 @@ void parse_source(MapReader m, drivers::SourceOptions& src) {
     if (pc < 0 || pc > 0xFFFF)
       s->fail_key("powerup_count", "source.sim.powerup_count must be 0..65535");
     src.sim.powerup_count = static_cast<std::uint16_t>(pc);
+    if (auto faults = s->optional_child("faults")) {
+      if (!faults->IsSequence()) s->fail(*faults, "source.sim.faults must be a list");
+      for (std::size_t i = 0; i < faults->size(); ++i) {
+        MapReader f(m.file(), (*faults)[i], "source.sim.faults[" + std::to_string(i) + "]");
+        using Kind = drivers::sim::SimFault::Kind;
+        static const std::vector<std::pair<std::string, Kind>> kinds = {
+            {"glitch", Kind::kCountOffset},    {"lost_counts", Kind::kCountRamp},
+            {"excursion", Kind::kExcursion},   {"stuck", Kind::kStuck},
+            {"silence", Kind::kSilence},       {"drop", Kind::kDrop},
+            {"partial", Kind::kPartial},       {"duplicate", Kind::kDuplicate},
+            {"board_error", Kind::kBoardError}};
+        std::vector<std::string> names;
+        for (const auto& k : kinds) names.push_back(k.first);
+        const std::string kind = f.choice("kind", names);
+        drivers::sim::SimFault fault;
+        for (const auto& k : kinds) {
+          if (k.first == kind) fault.kind = k.second;
+        }
+        fault.start_s = f.number("at_s");
+        if (fault.start_s < 0) f.fail_key("at_s", "at_s must be >= 0");
+        fault.duration_s = f.number_or("for_s", 0.0);
+        const std::int64_t joint = f.integer_or("joint", 1);
+        if (joint < 1 || joint > kJointCount) f.fail_key("joint", "joint must be 1..6");
+        fault.joint = static_cast<int>(joint - 1);
+        fault.counts = f.integer_or("counts", 0);
+        fault.percent = f.number_or("percent", 0.0);
+        if (fault.percent < 0 || fault.percent > 100)
+          f.fail_key("percent", "percent must be in [0, 100]");
+        const std::int64_t bits = f.integer_or("error_bits", 0);
+        if (bits < 0 || bits > 255) f.fail_key("error_bits", "error_bits must be 0..255");
+        fault.error_bits = static_cast<std::uint8_t>(bits);
+        f.finish();
+        src.sim.faults.push_back(fault);
+      }
+    }
     s->finish();
   }
   if (auto s = m.optional_map("socketcan")) {

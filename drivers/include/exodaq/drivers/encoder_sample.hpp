@@ -11,25 +11,25 @@ inline constexpr int kChannelCount = 6;
 // Cycle-level flags a source raises. Same bit values as joint_state_t SAMPLE_*,
 // so they pass straight into the published messages.
 namespace sample_flag {
-inline constexpr std::uint32_t kMissing = 1U << 0;     // nothing arrived for this cycle
-inline constexpr std::uint32_t kSeqGap = 1U << 1;      // board sequence skipped before this sample
-inline constexpr std::uint32_t kDuplicate = 1U << 2;   // a repeated board sequence was dropped
-inline constexpr std::uint32_t kOutOfOrder = 1U << 3;  // an older board sequence was dropped
-inline constexpr std::uint32_t kBoardError = 1U << 4;  // heartbeat reports error bits
-inline constexpr std::uint32_t kBusError = 1U << 5;    // error frame, bus-off, interface down
-inline constexpr std::uint32_t kClockStep = 1U << 6;   // set by the daemon's clock, not sources
-inline constexpr std::uint32_t kClockUnsync = 1U << 7; // set by the daemon's clock, not sources
-inline constexpr std::uint32_t kLate = 1U << 8;        // set by the loop, not sources
-inline constexpr std::uint32_t kPartial = 1U << 9;     // only one of COUNTS_A / COUNTS_B arrived
-inline constexpr std::uint32_t kReplay = 1U << 10;     // produced offline
+inline constexpr std::uint32_t kMissing = 1U << 0;      // nothing arrived for this cycle
+inline constexpr std::uint32_t kSeqGap = 1U << 1;       // board sequence skipped before this sample
+inline constexpr std::uint32_t kDuplicate = 1U << 2;    // a repeated board sequence was dropped
+inline constexpr std::uint32_t kOutOfOrder = 1U << 3;   // an older board sequence was dropped
+inline constexpr std::uint32_t kBoardError = 1U << 4;   // heartbeat reports error bits
+inline constexpr std::uint32_t kBusError = 1U << 5;     // error frame, bus-off, interface down
+inline constexpr std::uint32_t kClockStep = 1U << 6;    // set by the daemon's clock, not sources
+inline constexpr std::uint32_t kClockUnsync = 1U << 7;  // set by the daemon's clock, not sources
+inline constexpr std::uint32_t kLate = 1U << 8;         // set by the loop, not sources
+inline constexpr std::uint32_t kPartial = 1U << 9;      // only one of COUNTS_A / COUNTS_B arrived
+inline constexpr std::uint32_t kReplay = 1U << 10;      // produced offline
 }  // namespace sample_flag
 
 struct EncoderSample {
   // The sample instant: kernel receive time of the count frame on SocketCAN, the
   // simulated sample instant on sim, the recorded instant on replay.
-  std::int64_t mono_ns = 0;  // CLOCK_MONOTONIC
-  std::int64_t wall_ns = 0;  // CLOCK_REALTIME as the source saw it, 0 when the source has none
-  bool present = false;      // false: nothing arrived; counts repeat the last sample
+  std::int64_t mono_ns = 0;     // CLOCK_MONOTONIC
+  std::int64_t wall_ns = 0;     // CLOCK_REALTIME as the source saw it, 0 when the source has none
+  bool present = false;         // false: nothing arrived; counts repeat the last sample
   std::int16_t board_seq = -1;  // 0..255, -1 before the first sample
   std::array<std::uint16_t, kChannelCount> count16{};        // low 16 bits as sent
   std::array<std::uint16_t, kChannelCount> index_count16{};  // latched at the index edge

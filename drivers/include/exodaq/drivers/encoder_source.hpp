@@ -14,7 +14,7 @@ struct CycleTime {
   std::int64_t deadline_mono_ns = 0;  // the cycle's scheduled start
   std::int64_t now_mono_ns = 0;       // when the loop woke
   std::int64_t period_ns = 1'000'000;
-  std::int64_t cycle = 0;             // cycle number since start
+  std::int64_t cycle = 0;  // cycle number since start
 };
 
 enum class ReadStatus : std::uint8_t {

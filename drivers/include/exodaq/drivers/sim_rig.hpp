@@ -244,6 +244,33 @@ inline std::array<SimEncoderParams, kJoints> default_encoders() noexcept {
   return e;
 }
 
+// A scripted fault of the simulated board or its encoders, active from
+// start_s for duration_s of simulated time (duration_s <= 0: until the end).
+// Count faults act on the board's counter of `joint`, so later counts and
+// index latches carry them, exactly as a real lost or extra count would.
+struct SimFault {
+  enum class Kind : std::uint8_t {
+    kCountOffset,  // the counter jumps by `counts` at start_s and keeps it (a glitch)
+    kCountRamp,    // the counter gains `counts` one count per cycle from start_s (lost counts
+                   // too slow to look like a glitch; seen at the next index)
+    kExcursion,    // the joint really moves `counts` (at the encoder) away and back,
+                   // a triangle over duration_s: a joint driven beyond its limit
+    kStuck,        // the counter of `joint` freezes (a dead channel), then resumes
+    kSilence,      // no frame at all reaches the bus
+    kDrop,         // `percent` of cycles lose all their frames
+    kPartial,      // COUNTS_B is lost every cycle
+    kDuplicate,    // COUNTS_A is sent twice every cycle
+    kBoardError,   // the heartbeat reports `error_bits`
+  };
+  Kind kind = Kind::kCountOffset;
+  double start_s = 0.0;
+  double duration_s = 0.0;
+  int joint = 0;                // 0-based, for the count faults and kStuck
+  std::int64_t counts = 0;      // kCountOffset, kCountRamp, kExcursion
+  double percent = 0.0;         // kDrop
+  std::uint8_t error_bits = 0;  // kBoardError
+};
+
 struct SimOptions {
   std::uint64_t seed = 1;              // seeds motion, jitter, loss; same seed → same stream
   std::int64_t period_ns = 1'000'000;  // sampling period (1 kHz)
@@ -259,6 +286,7 @@ struct SimOptions {
   // 0 = taken from CLOCK_MONOTONIC / CLOCK_REALTIME − CLOCK_MONOTONIC at start().
   std::int64_t start_mono_ns = 0;
   std::int64_t wall_offset_ns = 0;
+  std::vector<SimFault> faults;  // scripted faults (sim_rig.hpp SimFault)
 };
 
 class SimRig {
@@ -281,6 +309,10 @@ class SimRig {
   }
   bool cycle_lost(std::int64_t k) const noexcept;
   bool cycle_partial(std::int64_t k) const noexcept;
+  // The counts the scripted faults add to joint j's counter at time t.
+  std::int64_t fault_count_offset(int j, double t_s, std::int64_t k) const noexcept;
+  // The real joint motion scripted excursions add to joint j at time t (rad).
+  double fault_excursion_rad(int j, double t_s) const noexcept;
 
   const SimMotion& motion() const noexcept { return motion_; }
   const SimEncoders& encoders() const noexcept { return encoders_; }
@@ -292,6 +324,9 @@ class SimRig {
   SimMotion motion_;
   SimEncoders encoders_;
   SimBoard board_;
+  std::array<std::int64_t, kJoints> stuck_count_{};
+  std::array<bool, kJoints> stuck_{};
+  std::uint8_t base_errors_ = 0;
 };
 
 // Deterministic hash → uniform [0, 1) (splitmix64), for the sim's randomness.

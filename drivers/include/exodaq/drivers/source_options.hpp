@@ -4,6 +4,9 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <vector>
+
+#include "exodaq/drivers/sim_rig.hpp"
 
 namespace exodaq::drivers {
 
@@ -14,14 +17,15 @@ struct SimSourceSettings {
   double loss_percent = 0.0;             // samples dropped at random (deterministic for a seed)
   double jitter_us = 0.0;                // sample-instant jitter (uniform, +/-)
   std::uint16_t powerup_count = 0x1234;  // counter value at power-up on every channel
+  std::vector<sim::SimFault> faults;     // scripted faults (sim_rig.hpp)
 };
 
 struct SocketCanSettings {
   std::string interface = "can0";
-  bool sync_master = true;        // send SYNC every cycle; false: follow a free-running board
-  int board = 0;                  // board number: shifts every board-sent ID by board * 0x20
-  int rcvbuf_bytes = 1 << 20;     // SO_RCVBUF(FORCE), sized for bursts
-  double read_deadline_us = 400;  // how long a cycle waits for its count frames after SYNC
+  bool sync_master = true;           // send SYNC every cycle; false: follow a free-running board
+  int board = 0;                     // board number: shifts every board-sent ID by board * 0x20
+  int rcvbuf_bytes = 1 << 20;        // SO_RCVBUF(FORCE), sized for bursts
+  double read_deadline_us = 400;     // how long a cycle waits for its count frames after SYNC
   double reopen_interval_ms = 1000;  // interface lost: re-open attempts at most this often
 };
 

@@ -150,6 +150,7 @@ class Acquisition {
   std::int64_t seq_ = 0;
   std::int64_t last_wake_ns_ = 0;
   std::int64_t last_sample_mono_ns_ = 0;
+  std::int64_t last_emitted_mono_ns_ = 0;
   bool previous_overran_ = false;
   TimingWindow period_window_;
   TimingWindow lateness_window_;
