@@ -23,35 +23,13 @@
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
 #include "recording.hpp"
+#include "sim_daemon.hpp"
 
 using namespace exodaq;
 using namespace std::chrono_literals;
 
 namespace {
-const std::string kUrl = "udpm://239.255.76.67:7667?ttl=0";
-
-// config/sim.yaml with absolute paths, a private channel prefix and, where the
-// system allows it, SCHED_FIFO for the loop thread.
-std::string write_config(const std::string& dir, const std::string& prefix) {
-  std::string text = test::read_file(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
-  const std::string cfg_dir = std::string(EXODAQ_SOURCE_DIR) + "/config/";
-  text = std::regex_replace(text, std::regex("model: models/"), "model: " + cfg_dir + "models/");
-  text = std::regex_replace(text, std::regex("calibration: calibration/"),
-                            "calibration: " + cfg_dir + "calibration/");
-  text = std::regex_replace(text, std::regex("prefix: \"\""), "prefix: \"" + prefix + "\"");
-  if (geteuid() == 0) text = std::regex_replace(text, std::regex("priority: 0 "), "priority: 50 ");
-  const std::string path = dir + "/exodaqd.yaml";
-  std::ofstream(path) << text;
-  return path;
-}
-
-template <typename Msg>
-Msg decode(const std::vector<std::uint8_t>& d) {
-  Msg m;
-  if (m.decode(d.data(), 0, static_cast<int>(d.size())) < 0)
-    throw std::runtime_error("decode failed");
-  return m;
-}
+const std::string& kUrl = test::kLcmUrl;
 
 struct DaemonRecording {
   std::string dir;
@@ -70,7 +48,7 @@ const DaemonRecording& the_run() {
     DaemonRecording r;
     r.dir = test::make_temp_dir("e2e");
     r.prefix = test::unique_prefix("e2e");
-    r.config = write_config(r.dir, r.prefix);
+    r.config = test::write_sim_config(r.dir, r.prefix);
     test::Process recorder({EXODAQ_RECORDER, kUrl, r.prefix + ".*", r.dir + "/recorder.bin"}, "",
                            r.dir + "/recorder.err");
     test::Process logger({"lcm-logger", "--lcm-url=" + kUrl, "--channel=" + r.prefix + ".*", "-f",
@@ -116,7 +94,7 @@ TEST(DaemonRun, StopsCleanlyOnSigtermAfterAFinalStatus) {
   EXPECT_EQ(r.exit_code, 0) << r.daemon_err;
   const auto ch = by_channel(r.recorded);
   ASSERT_TRUE(ch.count(r.prefix + "EXO_STATUS"));
-  const auto last = decode<exodaq::status_t>(ch.at(r.prefix + "EXO_STATUS").back()->data);
+  const auto last = test::decode<exodaq::status_t>(ch.at(r.prefix + "EXO_STATUS").back()->data);
   EXPECT_EQ(static_cast<int>(last.state), int{exodaq::status_t::STATE_STOPPING});
   EXPECT_EQ(last.rig, "sim-macaque");
   EXPECT_NE(r.daemon_err.find("SIGTERM received"), std::string::npos);
@@ -127,14 +105,14 @@ TEST(DaemonRun, SequenceRateAndTimestampsHold) {
   const auto ch = by_channel(r.recorded);
   const auto& joints = ch.at(r.prefix + "EXO_JOINT_STATE");
   ASSERT_GT(joints.size(), 3000u);
-  const auto status = decode<exodaq::status_t>(ch.at(r.prefix + "EXO_STATUS").back()->data);
+  const auto status = test::decode<exodaq::status_t>(ch.at(r.prefix + "EXO_STATUS").back()->data);
   std::int64_t prev_seq = -1;
   std::int64_t prev_utime = 0;
   std::int64_t prev_mono = 0;
   std::int64_t gaps = 0;
   std::int64_t run_id = 0;
   for (const auto* m : joints) {
-    const auto js = decode<exodaq::joint_state_t>(m->data);
+    const auto js = test::decode<exodaq::joint_state_t>(m->data);
     if (prev_seq >= 0) {
       ASSERT_GT(js.seq, prev_seq);
       gaps += js.seq - prev_seq - 1;
@@ -147,8 +125,8 @@ TEST(DaemonRun, SequenceRateAndTimestampsHold) {
     prev_utime = js.utime;
     prev_mono = js.mono_ns;
   }
-  const auto first = decode<exodaq::joint_state_t>(joints.front()->data);
-  const auto last = decode<exodaq::joint_state_t>(joints.back()->data);
+  const auto first = test::decode<exodaq::joint_state_t>(joints.front()->data);
+  const auto last = test::decode<exodaq::joint_state_t>(joints.back()->data);
   // >= 99.9 % of the cycles the daemon ran reached the subscriber.
   EXPECT_GE(static_cast<double>(joints.size()), 0.999 * static_cast<double>(status.cycles))
       << joints.size() << " of " << status.cycles;
@@ -164,12 +142,12 @@ TEST(DaemonRun, SequenceRateAndTimestampsHold) {
   // All channels of one cycle share seq, utime and mono_ns.
   std::map<std::int64_t, std::pair<std::int64_t, std::int64_t>> stamps;
   for (const auto* m : joints) {
-    const auto js = decode<exodaq::joint_state_t>(m->data);
+    const auto js = test::decode<exodaq::joint_state_t>(m->data);
     stamps[js.seq] = {js.utime, js.mono_ns};
   }
   int matched = 0;
   for (const auto* m : ch.at(r.prefix + "EXO_PALM_POSE")) {
-    const auto p = decode<exodaq::palm_pose_t>(m->data);
+    const auto p = test::decode<exodaq::palm_pose_t>(m->data);
     const auto it = stamps.find(p.seq);
     if (it == stamps.end()) continue;
     ASSERT_EQ(p.utime, it->second.first);
@@ -194,7 +172,7 @@ TEST(DaemonRun, AnglesMatchTheSimulatorTruthAndPalmMatchesForwardKinematics) {
   std::map<std::int64_t, exodaq::joint_state_t> joint_by_seq;
   int homed_samples = 0;
   for (const auto* m : ch.at(r.prefix + "EXO_JOINT_STATE")) {
-    const auto js = decode<exodaq::joint_state_t>(m->data);
+    const auto js = test::decode<exodaq::joint_state_t>(m->data);
     const auto truth = sim->rig().motion().truth(sim->rig().sample_time_s(js.seq));
     for (int j = 0; j < 6; ++j) {
       // Homed or not (before homing the rig powered up at home), the angle
@@ -209,7 +187,7 @@ TEST(DaemonRun, AnglesMatchTheSimulatorTruthAndPalmMatchesForwardKinematics) {
   EXPECT_GT(homed_samples, 0) << "the sim run never homed every joint";
   int valid = 0;
   for (const auto* m : ch.at(r.prefix + "EXO_PALM_POSE")) {
-    const auto p = decode<exodaq::palm_pose_t>(m->data);
+    const auto p = test::decode<exodaq::palm_pose_t>(m->data);
     const auto it = joint_by_seq.find(p.seq);
     if (it == joint_by_seq.end()) continue;
     kin::JointVector q(6);

@@ -1,0 +1,31 @@
+#include "sim_daemon.hpp"
+
+#include <unistd.h>
+
+#include <fstream>
+#include <regex>
+
+#include "process.hpp"
+
+namespace exodaq::test {
+
+std::string write_sim_config(const std::string& dir, const std::string& prefix,
+                             const std::string& calibration) {
+  std::string text = read_file(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+  const std::string cfg_dir = std::string(EXODAQ_SOURCE_DIR) + "/config/";
+  text = std::regex_replace(text, std::regex("model: models/"), "model: " + cfg_dir + "models/");
+  if (calibration.empty()) {
+    text = std::regex_replace(text, std::regex("calibration: calibration/"),
+                              "calibration: " + cfg_dir + "calibration/");
+  } else {
+    text = std::regex_replace(text, std::regex("calibration: calibration/sim.yaml"),
+                              "calibration: " + calibration);
+  }
+  text = std::regex_replace(text, std::regex("prefix: \"\""), "prefix: \"" + prefix + "\"");
+  if (geteuid() == 0) text = std::regex_replace(text, std::regex("priority: 0 "), "priority: 50 ");
+  const std::string path = dir + "/exodaqd.yaml";
+  std::ofstream(path) << text;
+  return path;
+}
+
+}  // namespace exodaq::test

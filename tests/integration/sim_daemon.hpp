@@ -1,0 +1,26 @@
+#pragma once
+// Helpers for tests that run exodaqd on the simulated rig as a process.
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace exodaq::test {
+
+inline const std::string kLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
+
+// config/sim.yaml with absolute model and calibration paths, a private channel
+// prefix and, where the system allows it (root), SCHED_FIFO for the loop
+// thread. `calibration` replaces the calibration file when not empty.
+std::string write_sim_config(const std::string& dir, const std::string& prefix,
+                             const std::string& calibration = {});
+
+template <typename Msg>
+Msg decode(const std::vector<std::uint8_t>& d) {
+  Msg m;
+  if (m.decode(d.data(), 0, static_cast<int>(d.size())) < 0)
+    throw std::runtime_error("decode failed");
+  return m;
+}
+
+}  // namespace exodaq::test
