@@ -46,10 +46,15 @@ class SocketCanPort final : public CanPort {
 
   int open() noexcept override {
     close();
-    const unsigned index = if_nametoindex(config_.interface.c_str());
-    if (index == 0) return errno == 0 ? -ENODEV : -errno;
+    // The socket first: a kernel without CAN (EAFNOSUPPORT) is reported as
+    // such, not as a missing interface.
     const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
     if (fd < 0) return -errno;
+    const unsigned index = if_nametoindex(config_.interface.c_str());
+    if (index == 0) {
+      ::close(fd);
+      return -ENODEV;
+    }
     const int r = configure(fd, index);
     if (r != 0) {
       ::close(fd);
