@@ -1,6 +1,7 @@
 #include "exodaq/drivers/replay_source.hpp"
 
 #include <lcm/lcm.h>
+#include <stdio_ext.h>
 
 #include <array>
 #include <cstdio>
@@ -38,6 +39,8 @@ struct EventLog {
       throw std::runtime_error("replay: cannot open LCM log '" + path +
                                "': " + std::strerror(errno));
     }
+    // One thread reads it: skip stdio's per-call locking (LCM reads field by field).
+    __fsetlocking(log->f, FSETLOCKING_BYCALLER);
   }
   ~EventLog() { lcm_eventlog_destroy(log); }
   EventLog(const EventLog&) = delete;
@@ -65,6 +68,35 @@ std::uint64_t fnv1a(std::uint64_t h, const void* data, std::size_t n) noexcept {
     h *= 0x100000001b3ULL;
   }
   return h;
+}
+
+// The channels of an LCM log and their event counts, from the event headers
+// only (the data is skipped, so this is quick). Event layout (LCM's
+// eventlog.c): magic u32, eventnum i64, timestamp i64, channel length u32,
+// data length u32, channel, data; all big-endian. Stops at the first damaged
+// header; the decoding pass (LCM's reader) then sees the same events.
+std::map<std::string, std::int64_t> scan_lcm_channels(const std::string& path) {
+  std::map<std::string, std::int64_t> channels;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!f) throw std::runtime_error("replay: cannot open '" + path + "': " + std::strerror(errno));
+  __fsetlocking(f.get(), FSETLOCKING_BYCALLER);
+  std::array<unsigned char, 28> h{};
+  std::string name;
+  const auto be32 = [&h](std::size_t at) {
+    return (std::uint32_t{h[at]} << 24) | (std::uint32_t{h[at + 1]} << 16) |
+           (std::uint32_t{h[at + 2]} << 8) | std::uint32_t{h[at + 3]};
+  };
+  while (std::fread(h.data(), 1, h.size(), f.get()) == h.size()) {
+    if (be32(0) != kLcmLogMagic) break;
+    const std::uint32_t channel_len = be32(20);
+    const std::uint32_t data_len = be32(24);
+    if (channel_len == 0 || channel_len > 1024) break;
+    name.resize(channel_len);
+    if (std::fread(name.data(), 1, channel_len, f.get()) != channel_len) break;
+    if (std::fseek(f.get(), static_cast<long>(data_len), SEEK_CUR) != 0) break;
+    ++channels[name];
+  }
+  return channels;
 }
 
 }  // namespace
@@ -148,13 +180,7 @@ std::int64_t ReplaySource::next_sample_mono_ns() const noexcept {
 void ReplaySource::load_lcm() {
   const std::string& path = settings_.path;
   // Pass 1: which channels the log holds, to find the raw channel with its prefix.
-  std::map<std::string, std::int64_t> channels;
-  {
-    EventLog log(path);
-    while (EventPtr ev{lcm_eventlog_read_next_event(log.log)}) {
-      ++channels[std::string(ev->channel, static_cast<std::size_t>(ev->channellen))];
-    }
-  }
+  const std::map<std::string, std::int64_t> channels = scan_lcm_channels(path);
   std::string raw_channel;
   if (channels.count(settings_.channel) != 0) {
     raw_channel = settings_.channel;
