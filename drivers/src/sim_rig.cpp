@@ -342,7 +342,6 @@ std::int64_t SimRig::fault_count_offset(int j, double t_s, std::int64_t k) const
   std::int64_t offset = 0;
   for (const SimFault& f : options_.faults) {
     if (f.joint != j || t_s < f.start_s) continue;
-    const double into = t_s - f.start_s;
     switch (f.kind) {
       case SimFault::Kind::kCountOffset:
         offset += f.counts;

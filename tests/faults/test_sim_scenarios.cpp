@@ -22,9 +22,10 @@ using exodaq::test::sim_config;
 
 namespace {
 constexpr std::int32_t kFaultFlags =
-    joint_state_t::JOINT_UNHOMED | joint_state_t::JOINT_STALE | joint_state_t::JOINT_GLITCH |
-    joint_state_t::JOINT_OUT_OF_RANGE | joint_state_t::JOINT_LOST_COUNTS |
-    joint_state_t::JOINT_HOMING_REJECTED | joint_state_t::JOINT_BOARD_ERROR;
+    std::int32_t{joint_state_t::JOINT_UNHOMED} | joint_state_t::JOINT_STALE |
+    joint_state_t::JOINT_GLITCH | joint_state_t::JOINT_OUT_OF_RANGE |
+    joint_state_t::JOINT_LOST_COUNTS | joint_state_t::JOINT_HOMING_REJECTED |
+    joint_state_t::JOINT_BOARD_ERROR;
 
 double truth(const ScenarioResult& r, std::int64_t seq, int j) {
   return r.sim->rig()
@@ -162,7 +163,9 @@ TEST(SimScenario, HomingOutsideTheLimitsIsRejected) {
   EXPECT_EQ(int{s.homing[4]}, int{status_t::HOMING_REJECTED});
   EXPECT_GT(count_flag(r, 4, joint_state_t::JOINT_HOMING_REJECTED), 0);
   for (int j = 0; j < 6; ++j) {
-    if (j != 4) EXPECT_EQ(int{s.homing[j]}, int{status_t::HOMING_HOMED}) << j;
+    if (j != 4) {
+      EXPECT_EQ(int{s.homing[j]}, int{status_t::HOMING_HOMED}) << j;
+    }
   }
   // Never valid, always for the unhomed joint.
   EXPECT_EQ(r.first([](const Cycle& c) { return c.palm.valid; }), -1);
@@ -213,7 +216,9 @@ TEST(SimScenario, IndexDriftOfFiveCountsIsLostCountsAtTheNextIndex) {
   ASSERT_GT(detected, 12000);
   EXPECT_EQ(count_flag(r, 2, joint_state_t::JOINT_LOST_COUNTS), 100);
   for (int j = 0; j < 6; ++j) {
-    if (j != 2) EXPECT_EQ(s.lost_count_events[j], 0) << j;
+    if (j != 2) {
+      EXPECT_EQ(s.lost_count_events[j], 0) << j;
+    }
   }
   // Between the loss and the index nothing can know: those samples are
   // excluded from the one-count check (docs/operations.md says so); after the
@@ -276,7 +281,9 @@ TEST(SimScenario, TenPercentFrameLossIsCountedAndFlaggedCycleByCycle) {
   EXPECT_EQ(s.missing_samples, missing);
   EXPECT_NEAR(static_cast<double>(missing), 300.0, 60.0);
   for (const auto& c : r.cycles) {
-    if (c.joint.sample_flags & joint_state_t::SAMPLE_MISSING) ASSERT_FALSE(c.palm.valid);
+    if (c.joint.sample_flags & joint_state_t::SAMPLE_MISSING) {
+      ASSERT_FALSE(c.palm.valid);
+    }
   }
   EXPECT_EQ(s.seq_gaps, count_sample_flag(r, joint_state_t::SAMPLE_SEQ_GAP));
   EXPECT_GT(check_valid_means_right(r), 3000);
@@ -342,7 +349,9 @@ TEST(SimScenario, AJointDrivenBeyondItsLimitIsOutOfRangeWhileThere) {
   for (const auto& c : r.cycles) {
     const bool beyond = c.joint.homed[4] && c.joint.position[4] > limit;
     ASSERT_EQ(beyond, (c.joint.flags[4] & joint_state_t::JOINT_OUT_OF_RANGE) != 0) << c.joint.seq;
-    if (beyond) ASSERT_FALSE(c.palm.valid);
+    if (beyond) {
+      ASSERT_FALSE(c.palm.valid);
+    }
   }
   EXPECT_GT(count_flag(r, 4, joint_state_t::JOINT_OUT_OF_RANGE), 100);
   const auto* sim = r.sim;

@@ -305,10 +305,19 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   }
   if (!sample_.present) {
     // The instant the sample was due: the source's own stamp for the lost
-    // cycle when it has one (the sim does), else the deadline.
-    if (sample_.mono_ns <= last_emitted_mono_ns_) sample_.mono_ns = deadline_ns;
+    // cycle when it has one (the sim does); else extrapolated from the last
+    // real sample by whole periods, which stays before the next real sample's
+    // stamp, so the never-backwards rule never has to push a real sample's
+    // utime later than its receive time.
+    if (sample_.mono_ns <= last_emitted_mono_ns_) {
+      sample_.mono_ns = last_present_mono_ns_ > 0
+                            ? last_present_mono_ns_ + (seq_ - last_present_seq_) * config_.period_ns
+                            : deadline_ns;
+    }
   } else {
     last_sample_mono_ns_ = wake_ns;
+    last_present_mono_ns_ = sample_.mono_ns;
+    last_present_seq_ = seq_;
   }
 
   // Time: recorded on replay; otherwise the sample's monotonic instant mapped

@@ -151,6 +151,8 @@ class Acquisition {
   std::int64_t last_wake_ns_ = 0;
   std::int64_t last_sample_mono_ns_ = 0;
   std::int64_t last_emitted_mono_ns_ = 0;
+  std::int64_t last_present_mono_ns_ = 0;
+  std::int64_t last_present_seq_ = 0;
   bool previous_overran_ = false;
   TimingWindow period_window_;
   TimingWindow lateness_window_;
