@@ -58,15 +58,8 @@ ScenarioResult run_scenario(const core::ServiceConfig& config, double seconds,
   auto source = drivers::make_source(rig_side.source, core::make_source_context(rig_side));
   r.sim = dynamic_cast<const drivers::SimSource*>(source.get());
   if (r.sim == nullptr) throw std::runtime_error("scenario needs the sim backend");
-  core::AcquisitionConfig ac;
-  ac.rig = config.rig;
-  ac.clock = config.clock;
+  core::AcquisitionConfig ac = core::make_acquisition_config(config);
   ac.clock.require_sync = core::RequireSync::kIgnore;
-  ac.fault_after_ms = config.loop.fault_after_ms;
-  for (int i = 0; i < 6; ++i) {
-    ac.joint_names[static_cast<std::size_t>(i)] =
-        config.model.chain.joints()[static_cast<std::size_t>(i)].name;
-  }
   auto sink = std::make_unique<KeepingSink>();
   sink->out = &r;
   r.acquisition = std::make_unique<core::Acquisition>(

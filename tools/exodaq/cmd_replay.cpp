@@ -165,21 +165,13 @@ struct ReplayOptions {
   bool quiet = false;
 };
 
-// The daemon's mapping from a service config (daemon_runtime.cpp), for replay.
+// The daemon's own loop settings, switched to replay.
 core::AcquisitionConfig acquisition_config(const core::ServiceConfig& c, double speed,
                                            std::int64_t run_id) {
-  core::AcquisitionConfig a;
-  a.rig = c.rig;
-  a.period_ns = static_cast<std::int64_t>(1e9 / c.loop.rate_hz);
-  a.fault_after_ms = c.loop.fault_after_ms;
-  a.status_every_cycles =
-      std::max(1, static_cast<int>(c.loop.rate_hz / c.loop.status_rate_hz + 0.5));
-  a.publish_raw = c.lcm.publish_raw;
-  a.clock = c.clock;
-  const auto& joints = c.model.chain.joints();
-  for (int i = 0; i < core::kJointCount; ++i) {
-    a.joint_names[static_cast<std::size_t>(i)] = joints[static_cast<std::size_t>(i)].name;
-  }
+  core::AcquisitionConfig a = core::make_acquisition_config(c);
+  a.cpu = -1;
+  a.priority = 0;
+  a.lock_memory = false;
   a.replay = true;
   a.replay_speed = speed;
   a.run_id = run_id;

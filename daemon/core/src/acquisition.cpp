@@ -328,6 +328,10 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   if (config_.replay) {
     utime_us = sample_.wall_ns / 1000;
     extra |= drivers::sample_flag::kReplay;
+    // The live run's clock verdict, carried in the recorded flags.
+    clock_invalid = (sample_.flags & drivers::sample_flag::kClockStep) != 0 ||
+                    ((sample_.flags & drivers::sample_flag::kClockUnsync) != 0 &&
+                     config_.clock.require_sync == RequireSync::kHold);
   } else {
     const auto mapped =
         time_mapper_.map(sample_.mono_ns, clock_shared_.offset_ns.load(std::memory_order_relaxed),

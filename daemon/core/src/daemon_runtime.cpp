@@ -322,26 +322,6 @@ std::string status_line(Acquisition& acq, double rate_hz) {
   return text;
 }
 
-AcquisitionConfig make_acquisition_config(const ServiceConfig& c) {
-  AcquisitionConfig a;
-  a.rig = c.rig;
-  a.period_ns = static_cast<std::int64_t>(1e9 / c.loop.rate_hz);
-  a.cpu = c.loop.cpu;
-  a.priority = c.loop.priority;
-  a.lock_memory = c.loop.lock_memory;
-  a.fault_after_ms = c.loop.fault_after_ms;
-  a.status_every_cycles =
-      std::max(1, static_cast<int>(c.loop.rate_hz / c.loop.status_rate_hz + 0.5));
-  a.publish_raw = c.lcm.publish_raw;
-  a.clock = c.clock;
-  const auto& joints = c.model.chain.joints();
-  for (int i = 0; i < kJointCount; ++i)
-    a.joint_names[static_cast<std::size_t>(i)] = joints[static_cast<std::size_t>(i)].name;
-  a.replay = c.source.backend == drivers::SourceBackend::kReplay;
-  a.replay_speed = c.source.replay_speed;
-  return a;
-}
-
 // Settings a reload cannot change without a restart.
 std::string restart_only_changes(const ServiceConfig& a, const ServiceConfig& b) {
   std::string out;

@@ -10,6 +10,7 @@
 
 #include "exodaq/config/calibration_file.hpp"
 #include "exodaq/config/model_file.hpp"
+#include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/clock.hpp"
 #include "exodaq/core/pipeline.hpp"
 #include "exodaq/drivers/source_options.hpp"
@@ -84,6 +85,10 @@ std::unique_ptr<PipelineConfig> make_pipeline_config(const ServiceConfig& config
 // What the source backends need to know about the rig (encoders, model,
 // calibration): the sim puts each index at the calibration's delta_theta0.
 drivers::SourceContext make_source_context(const ServiceConfig& config);
+
+// The loop's settings from a loaded service config (rate, scheduling, status
+// rate, joint names, clock policy, replay pacing).
+AcquisitionConfig make_acquisition_config(const ServiceConfig& config);
 
 // A readable dump (YAML) of the effective configuration (--print-config).
 std::string to_yaml(const ServiceConfig& config);
