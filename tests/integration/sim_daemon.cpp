@@ -22,7 +22,8 @@ std::string write_sim_config(const std::string& dir, const std::string& prefix,
                               "calibration: " + calibration);
   }
   text = std::regex_replace(text, std::regex("prefix: \"\""), "prefix: \"" + prefix + "\"");
-  if (geteuid() == 0) text = std::regex_replace(text, std::regex("priority: 0 "), "priority: 50 ");
+  // sim.yaml asks for SCHED_FIFO 50; without privilege ask for none, to keep the log quiet.
+  if (geteuid() != 0) text = std::regex_replace(text, std::regex("priority: 50 "), "priority: 0 ");
   const std::string path = dir + "/exodaqd.yaml";
   std::ofstream(path) << text;
   return path;
