@@ -421,6 +421,9 @@ int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_
   bool dropped = false;
   bool partial = false;
   bool duplicate = false;
+  bool hold_counts = false;
+  bool bad_seq = false;
+  bool wrong_dlc = false;
   std::uint8_t errors = base_errors_;
   std::array<bool, kJoints> stuck{};
   for (const SimFault& f : options_.faults) {
@@ -446,6 +449,19 @@ int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_
       case SimFault::Kind::kBoardError:
         errors = static_cast<std::uint8_t>(errors | f.error_bits);
         break;
+      case SimFault::Kind::kReorder: {
+        // Cycles start_k, start_k + 2, ...: held back; the cycle after each goes first.
+        const auto start_k = static_cast<std::int64_t>(
+            std::ceil(f.start_s * 1e9 / static_cast<double>(options_.period_ns)));
+        hold_counts = hold_counts || (k - start_k) % 2 == 0;
+        break;
+      }
+      case SimFault::Kind::kBadSeq:
+        bad_seq = true;
+        break;
+      case SimFault::Kind::kWrongDlc:
+        wrong_dlc = true;
+        break;
       default:
         break;
     }
@@ -465,7 +481,19 @@ int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_
   board_.options().errors = errors;
 
   int n = board_.make_cycle(k, c, out);
-  if (cycle_lost(k) || silent || dropped) return 0;
+  if (cycle_lost(k) || silent || dropped) {
+    held_n_ = 0;  // whatever was held back is lost with the cycle
+    return 0;
+  }
+  const std::uint32_t id_a = board_.options().ids.counts_a_id();
+  const std::uint32_t id_b = board_.options().ids.counts_b_id();
+  for (int i = 0; i < n; ++i) {
+    can::CanFrame& f = out[u(i)];
+    if (bad_seq && (f.id == id_a || f.id == id_b)) {
+      f.data[7] = static_cast<std::uint8_t>(f.data[7] + 128);
+    }
+    if (wrong_dlc && f.id == id_b) f.dlc = 6;
+  }
   if (duplicate && n < static_cast<int>(out.size())) {
     const std::uint32_t a = board_.options().ids.counts_a_id();
     for (int i = 0; i < n; ++i) {
@@ -485,6 +513,25 @@ int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_
     }
     n = w;
   }
+  // kReorder: this cycle's count frames wait for the next cycle; the ones
+  // held back from the previous cycle follow this cycle's.
+  std::array<can::CanFrame, 2> late{};
+  const int late_n = held_n_;
+  for (int i = 0; i < late_n; ++i) late[u(i)] = held_[u(i)];
+  held_n_ = 0;
+  if (hold_counts) {
+    int w = 0;
+    for (int i = 0; i < n; ++i) {
+      const can::CanFrame& f = out[u(i)];
+      if ((f.id == id_a || f.id == id_b) && held_n_ < static_cast<int>(held_.size())) {
+        held_[u(held_n_++)] = f;
+      } else {
+        out[u(w++)] = f;
+      }
+    }
+    n = w;
+  }
+  for (int i = 0; i < late_n && n < static_cast<int>(out.size()); ++i) out[u(n++)] = late[u(i)];
   const std::int64_t mono = start_mono_ns + t_ns;
   for (int i = 0; i < n; ++i) {
     out[u(i)].mono_ns = mono;

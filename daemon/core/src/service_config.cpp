@@ -72,11 +72,12 @@ void parse_source(MapReader m, drivers::SourceOptions& src) {
         MapReader f(m.file(), (*faults)[i], "source.sim.faults[" + std::to_string(i) + "]");
         using Kind = drivers::sim::SimFault::Kind;
         static const std::vector<std::pair<std::string, Kind>> kinds = {
-            {"glitch", Kind::kCountOffset},    {"lost_counts", Kind::kCountRamp},
-            {"excursion", Kind::kExcursion},   {"stuck", Kind::kStuck},
-            {"silence", Kind::kSilence},       {"drop", Kind::kDrop},
-            {"partial", Kind::kPartial},       {"duplicate", Kind::kDuplicate},
-            {"board_error", Kind::kBoardError}};
+            {"glitch", Kind::kCountOffset},     {"lost_counts", Kind::kCountRamp},
+            {"excursion", Kind::kExcursion},    {"stuck", Kind::kStuck},
+            {"silence", Kind::kSilence},        {"drop", Kind::kDrop},
+            {"partial", Kind::kPartial},        {"duplicate", Kind::kDuplicate},
+            {"board_error", Kind::kBoardError}, {"reorder", Kind::kReorder},
+            {"bad_seq", Kind::kBadSeq},         {"wrong_dlc", Kind::kWrongDlc}};
         std::vector<std::string> names;
         for (const auto& k : kinds) names.push_back(k.first);
         const std::string kind = f.choice("kind", names);

@@ -213,7 +213,9 @@ struct BoardCycle {
 // seq = first_seq + k (mod 256). Stamps are left 0 for the caller.
 class SimBoard {
  public:
-  static constexpr int kMaxFramesPerCycle = kChannelCount + 3;
+  // INDEX frames, COUNTS_A, COUNTS_B, HEARTBEAT, and room for the frames a
+  // scripted fault adds (a duplicate, two held back from the previous cycle).
+  static constexpr int kMaxFramesPerCycle = kChannelCount + 6;
   using Frames = std::array<can::CanFrame, kMaxFramesPerCycle>;
 
   explicit SimBoard(const SimBoardOptions& options = {}) noexcept : options_(options) {}
@@ -261,6 +263,10 @@ struct SimFault {
     kPartial,      // COUNTS_B is lost every cycle
     kDuplicate,    // COUNTS_A is sent twice every cycle
     kBoardError,   // the heartbeat reports `error_bits`
+    kReorder,      // every other cycle from start_s, that cycle's COUNTS_A/B are held back
+                   // and sent after the next cycle's (reaching the bus out of order)
+    kBadSeq,       // COUNTS_A/B carry seq + 128 (a corrupted sequence byte)
+    kWrongDlc,     // COUNTS_B is sent with DLC 6 instead of 8 (a malformed frame)
   };
   Kind kind = Kind::kCountOffset;
   double start_s = 0.0;
@@ -327,6 +333,9 @@ class SimRig {
   std::array<std::int64_t, kJoints> stuck_count_{};
   std::array<bool, kJoints> stuck_{};
   std::uint8_t base_errors_ = 0;
+  // kReorder: count frames held back to be sent after the next cycle's.
+  std::array<can::CanFrame, 2> held_{};
+  int held_n_ = 0;
 };
 
 // Deterministic hash → uniform [0, 1) (splitmix64), for the sim's randomness.
