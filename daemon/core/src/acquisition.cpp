@@ -166,7 +166,7 @@ void Acquisition::setup_realtime() {
   std::string report;
   if (config_.lock_memory) {
     if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
-      report += std::string("mlockall refused (") + std::strerror(errno) + "); ";
+      report += std::string("mlockall refused (") + strerrordesc_np(errno) + "); ";
     } else {
       report += "memory locked; ";
     }
@@ -177,14 +177,14 @@ void Acquisition::setup_realtime() {
     CPU_SET(config_.cpu, &set);
     const int rc = pthread_setaffinity_np(pthread_self(), sizeof(set), &set);
     report += rc == 0 ? "pinned to CPU " + std::to_string(config_.cpu) + "; "
-                      : "CPU affinity refused (" + std::string(std::strerror(rc)) + "); ";
+                      : "CPU affinity refused (" + std::string(strerrordesc_np(rc)) + "); ";
   }
   if (config_.priority > 0) {
     sched_param param{};
     param.sched_priority = config_.priority;
     const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
     report += rc == 0 ? "SCHED_FIFO priority " + std::to_string(config_.priority)
-                      : "SCHED_FIFO refused (" + std::string(std::strerror(rc)) +
+                      : "SCHED_FIFO refused (" + std::string(strerrordesc_np(rc)) +
                             "), running SCHED_OTHER";
   } else {
     report += "SCHED_OTHER";

@@ -49,7 +49,8 @@ std::unique_ptr<MessageSink> make_lcm_sink(const std::string& url) {
   return std::make_unique<LcmSink>(url);
 }
 
-Publisher::Publisher(std::unique_ptr<MessageSink> sink, std::string prefix, std::size_t capacity)
+Publisher::Publisher(std::unique_ptr<MessageSink> sink, const std::string& prefix,
+                     std::size_t capacity)
     : sink_(std::move(sink)), slots_(round_up_pow2(capacity)), mask_(slots_.size() - 1) {
   for (int i = 0; i < kChannelIdCount; ++i) {
     channels_[static_cast<std::size_t>(i)] = prefix + channel_base_name(static_cast<ChannelId>(i));

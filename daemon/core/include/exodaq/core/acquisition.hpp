@@ -143,10 +143,10 @@ class Acquisition {
   // loop-thread state
   drivers::EncoderSample sample_;
   CycleResult result_;
-  exodaq::joint_state_t joint_msg_;
-  exodaq::palm_pose_t palm_msg_;
-  exodaq::encoder_raw_t raw_msg_;
-  exodaq::status_t status_msg_;
+  exodaq::joint_state_t joint_msg_{};
+  exodaq::palm_pose_t palm_msg_{};
+  exodaq::encoder_raw_t raw_msg_{};
+  exodaq::status_t status_msg_{};
   std::int64_t seq_ = 0;
   std::int64_t last_wake_ns_ = 0;
   std::int64_t last_sample_mono_ns_ = 0;

@@ -43,7 +43,8 @@ std::unique_ptr<MessageSink> make_lcm_sink(const std::string& url);
 
 class Publisher {
  public:
-  Publisher(std::unique_ptr<MessageSink> sink, std::string prefix, std::size_t capacity = 1024);
+  Publisher(std::unique_ptr<MessageSink> sink, const std::string& prefix,
+            std::size_t capacity = 1024);
   ~Publisher();
   Publisher(const Publisher&) = delete;
   Publisher& operator=(const Publisher&) = delete;
