@@ -1,0 +1,401 @@
+// Soak (issue 11 part 4): exodaqd on the simulated rig at 1 kHz for N minutes
+// with this process as an LCM subscriber, sampling the daemon's RSS and open
+// file descriptors from /proc. Passes (exit 0) when
+//   - the daemon exits 0 after --duration, one run, joint_state seq from 0,
+//     strictly increasing, and every cycle missing at the subscriber is one
+//     the daemon counted as skipped (zero uncounted sequence gaps);
+//   - the subscriber's own counts agree with the daemon's final status:
+//     joint_state, palm_pose and encoder_raw messages received == status
+//     cycles, missing samples 0, board seq gaps only from overruns, no bad,
+//     duplicate or out-of-order frames, no publish failures, never FAULT;
+//   - after the warm-up, VmRSS stays within 1 MiB (max - min) and the number
+//     of open file descriptors never exceeds its value at the end of warm-up.
+// Writes soak.json and soak.txt to --out. scripts/soak is the front end.
+#include <lcm/lcm.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/joint_state_t.hpp"
+#include "exodaq/palm_pose_t.hpp"
+#include "exodaq/status_t.hpp"
+#include "process.hpp"
+#include "sim_daemon.hpp"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct Subscriber {
+  std::string prefix;
+  std::mutex mutex;
+  // joint_state
+  std::int64_t joints = 0;
+  std::int64_t first_seq = -1;
+  std::int64_t last_seq = -1;
+  std::int64_t holes = 0;
+  std::int64_t out_of_order = 0;                 // seq not increasing (must stay 0)
+  std::map<std::int64_t, std::int64_t> run_ids;  // run_id -> messages
+  std::int64_t joint_sample_flags_or = 0;
+  // palm_pose, encoder_raw
+  std::int64_t palms = 0;
+  std::int64_t valid_palms = 0;
+  std::int64_t raws = 0;
+  std::int64_t decode_errors = 0;
+  // status
+  std::vector<exodaq::status_t> statuses;
+};
+
+void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+  auto* s = static_cast<Subscriber*>(user);
+  const std::string ch(channel);
+  const auto size = static_cast<int>(rbuf->data_size);
+  std::lock_guard<std::mutex> lock(s->mutex);
+  if (ch == s->prefix + "EXO_JOINT_STATE") {
+    exodaq::joint_state_t m;
+    if (m.decode(rbuf->data, 0, size) < 0) {
+      ++s->decode_errors;
+      return;
+    }
+    ++s->joints;
+    ++s->run_ids[m.run_id];
+    s->joint_sample_flags_or |= m.sample_flags;
+    if (s->first_seq < 0) {
+      s->first_seq = m.seq;
+    } else if (m.seq <= s->last_seq) {
+      ++s->out_of_order;
+    } else {
+      s->holes += m.seq - s->last_seq - 1;
+    }
+    s->last_seq = std::max(s->last_seq, m.seq);
+  } else if (ch == s->prefix + "EXO_PALM_POSE") {
+    exodaq::palm_pose_t m;
+    if (m.decode(rbuf->data, 0, size) < 0) {
+      ++s->decode_errors;
+      return;
+    }
+    ++s->palms;
+    if (m.valid) ++s->valid_palms;
+  } else if (ch == s->prefix + "EXO_ENCODER_RAW") {
+    ++s->raws;
+  } else if (ch == s->prefix + "EXO_STATUS") {
+    exodaq::status_t m;
+    if (m.decode(rbuf->data, 0, size) < 0) {
+      ++s->decode_errors;
+      return;
+    }
+    s->statuses.push_back(m);
+  }
+}
+
+struct ProcSample {
+  double t_s = 0;
+  long rss_kb = -1;
+  long hwm_kb = -1;
+  long threads = -1;
+  long fds = -1;
+};
+
+ProcSample sample_proc(pid_t pid, double t_s) {
+  ProcSample p;
+  p.t_s = t_s;
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto value = [&](const char* key) {
+      return std::strtol(line.c_str() + std::strlen(key), nullptr, 10);
+    };
+    if (line.rfind("VmRSS:", 0) == 0) p.rss_kb = value("VmRSS:");
+    if (line.rfind("VmHWM:", 0) == 0) p.hwm_kb = value("VmHWM:");
+    if (line.rfind("Threads:", 0) == 0) p.threads = value("Threads:");
+  }
+  std::error_code ec;
+  long n = 0;
+  for (std::filesystem::directory_iterator it("/proc/" + std::to_string(pid) + "/fd", ec), end;
+       !ec && it != end; it.increment(ec)) {
+    ++n;
+  }
+  if (!ec) p.fds = n;
+  return p;
+}
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const auto i = static_cast<std::size_t>(std::ceil(p / 100.0 * static_cast<double>(v.size())));
+  return v[std::min(v.size() - 1, i == 0 ? 0 : i - 1)];
+}
+
+struct Check {
+  std::string what;
+  bool ok = false;
+};
+
+std::string json_escape(const std::string& s) {
+  std::string o;
+  for (const char c : s) {
+    if (c == '"' || c == '\\') o += '\\';
+    o += c;
+  }
+  return o;
+}
+
+int usage() {
+  std::fprintf(stderr,
+               "usage: exodaq_soak [--minutes N] [--out DIR] [--warmup S] [--sample S] "
+               "[--exodaqd PATH]\n");
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  double minutes = 10.0;
+  std::string out_dir;
+  double warmup_s = -1;
+  double sample_s = -1;
+  std::string exodaqd = EXODAQD;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (i + 1 >= argc) return usage();
+    const std::string v = argv[++i];
+    if (a == "--minutes") {
+      minutes = std::stod(v);
+    } else if (a == "--out") {
+      out_dir = v;
+    } else if (a == "--warmup") {
+      warmup_s = std::stod(v);
+    } else if (a == "--sample") {
+      sample_s = std::stod(v);
+    } else if (a == "--exodaqd") {
+      exodaqd = v;
+    } else {
+      return usage();
+    }
+  }
+  if (!(minutes > 0)) return usage();
+  const double duration_s = minutes * 60.0;
+  // Warm-up: the simulated operator homes every joint in ~11 s; the first
+  // status windows, LCM's buffers and the allocator settle. 60 s on a full
+  // soak, a third of a short one.
+  if (warmup_s < 0) warmup_s = std::min(60.0, duration_s / 3.0);
+  if (sample_s < 0) sample_s = duration_s >= 120 ? 5.0 : 1.0;
+  if (out_dir.empty()) out_dir = exodaq::test::make_temp_dir("soak");
+  std::filesystem::create_directories(out_dir);
+
+  Subscriber sub;
+  sub.prefix = exodaq::test::unique_prefix("soak");
+  const std::string config = exodaq::test::write_sim_config(out_dir, sub.prefix);
+  lcm_t* lcm = lcm_create(exodaq::test::kLcmUrl.c_str());
+  if (lcm == nullptr) {
+    std::fprintf(stderr, "soak: cannot open LCM %s\n", exodaq::test::kLcmUrl.c_str());
+    return 1;
+  }
+  lcm_subscribe(lcm, (sub.prefix + "EXO_.*").c_str(), on_message, &sub);
+  std::atomic<bool> stop{false};
+  std::thread listener([&] {
+    while (!stop.load()) lcm_handle_timeout(lcm, 50);
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+
+  std::printf(
+      "soak: exodaqd on the sim at 1 kHz for %.1f min (warm-up %.0f s, sampling every %.0f "
+      "s), output in %s\n",
+      minutes, warmup_s, sample_s, out_dir.c_str());
+  std::fflush(stdout);
+  std::vector<ProcSample> samples;
+  std::optional<int> code;
+  const auto t0 = Clock::now();
+  {
+    exodaq::test::Process daemon(
+        {exodaqd, "--config", config, "--duration", std::to_string(duration_s)},
+        out_dir + "/exodaqd.out", out_dir + "/exodaqd.err");
+    const auto interval = std::chrono::milliseconds(static_cast<int>(sample_s * 1000));
+    const auto limit = t0 + std::chrono::milliseconds(static_cast<long>(duration_s * 1000) + 30000);
+    // Sample after each interval (the first one after exec and start-up).
+    while (!code && Clock::now() < limit) {
+      code = daemon.wait(interval);
+      if (code) break;
+      const double t = std::chrono::duration<double>(Clock::now() - t0).count();
+      const ProcSample p = sample_proc(daemon.pid(), t);
+      if (p.rss_kb >= 0 && p.fds >= 0) samples.push_back(p);
+    }
+    if (!code) {
+      std::fprintf(stderr, "soak: exodaqd did not stop after --duration; killing it\n");
+      daemon.signal(SIGKILL);
+      code = daemon.wait(std::chrono::seconds(5));
+    }
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  stop.store(true);
+  listener.join();
+  lcm_destroy(lcm);
+  const double wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+
+  // ---- checks ----
+  std::vector<Check> checks;
+  const auto check = [&](bool ok, const std::string& what) { checks.push_back({what, ok}); };
+  std::lock_guard<std::mutex> lock(sub.mutex);
+  check(code && *code == 0, "exodaqd exited 0 after --duration");
+  check(!sub.statuses.empty(), "status received");
+  exodaq::status_t last;
+  if (!sub.statuses.empty()) last = sub.statuses.back();
+  check(last.state == exodaq::status_t::STATE_STOPPING, "final status is STOPPING");
+  check(sub.run_ids.size() == 1, "one run_id");
+  check(sub.first_seq == 0, "joint_state seq starts at 0");
+  check(sub.out_of_order == 0, "joint_state seq strictly increasing");
+  const std::int64_t uncounted = std::max<std::int64_t>(0, sub.holes - last.overruns);
+  check(uncounted == 0, "zero uncounted sequence gaps (holes " + std::to_string(sub.holes) +
+                            " <= overruns " + std::to_string(last.overruns) + ")");
+  check(sub.joints + sub.holes == sub.last_seq + 1, "received + holes == last seq + 1");
+  check(sub.joints == last.cycles, "joint_state received (" + std::to_string(sub.joints) +
+                                       ") == status cycles (" + std::to_string(last.cycles) + ")");
+  check(sub.palms == last.cycles, "palm_pose received == status cycles");
+  check(sub.raws == last.cycles, "encoder_raw received == status cycles");
+  check(last.seq == sub.last_seq, "final status covers the last cycle received");
+  check(last.missing_samples == 0, "missing samples 0 on a fault-free sim");
+  check(last.seq_gaps <= last.overruns, "board seq gaps only from overruns");
+  check(last.bad_frames == 0 && last.duplicates == 0 && last.out_of_order == 0,
+        "no bad, duplicate or out-of-order frames");
+  check(last.publish_failures == 0, "no publish failures");
+  check(sub.decode_errors == 0, "every message decodes");
+  std::map<int, std::int64_t> states;
+  for (const auto& s : sub.statuses) ++states[s.state];
+  check(states[exodaq::status_t::STATE_FAULT] == 0, "never FAULT");
+  bool cycles_monotonic = true;
+  for (std::size_t i = 1; i < sub.statuses.size(); ++i) {
+    cycles_monotonic = cycles_monotonic && sub.statuses[i].cycles >= sub.statuses[i - 1].cycles;
+  }
+  check(cycles_monotonic, "status cycles never decrease");
+
+  std::vector<ProcSample> steady;
+  for (const auto& p : samples) {
+    if (p.t_s >= warmup_s) steady.push_back(p);
+  }
+  long rss_min = 0, rss_max = 0, fd_start = 0, fd_max = 0, fd_min = 0;
+  if (!steady.empty()) {
+    rss_min = rss_max = steady.front().rss_kb;
+    fd_start = fd_max = fd_min = steady.front().fds;
+    for (const auto& p : steady) {
+      rss_min = std::min(rss_min, p.rss_kb);
+      rss_max = std::max(rss_max, p.rss_kb);
+      fd_max = std::max(fd_max, p.fds);
+      fd_min = std::min(fd_min, p.fds);
+    }
+  }
+  check(steady.size() >= 3,
+        "at least 3 /proc samples after warm-up (" + std::to_string(steady.size()) + ")");
+  check(rss_max - rss_min <= 1024,
+        "RSS flat within 1 MiB after warm-up (" + std::to_string(rss_max - rss_min) + " KiB)");
+  check(fd_max <= fd_start, "open file descriptors do not grow after warm-up (" +
+                                std::to_string(fd_start) + " -> max " + std::to_string(fd_max) +
+                                ")");
+
+  // Lateness from the status windows (reported, not judged).
+  std::vector<double> p50, p99, mx, work99;
+  for (const auto& s : sub.statuses) {
+    if (s.window_cycles <= 0) continue;
+    p50.push_back(s.lateness_p50_us);
+    p99.push_back(s.lateness_p99_us);
+    mx.push_back(s.lateness_max_us);
+    work99.push_back(s.work_p99_us);
+  }
+  const bool pass = std::all_of(checks.begin(), checks.end(), [](const Check& c) { return c.ok; });
+  const long first_rss = samples.empty() ? 0 : samples.front().rss_kb;
+  const long last_rss = samples.empty() ? 0 : samples.back().rss_kb;
+  const long threads = samples.empty() ? 0 : samples.back().threads;
+  const long hwm = samples.empty() ? 0 : samples.back().hwm_kb;
+
+  std::ostringstream txt;
+  txt << "exodaq soak: " << (pass ? "PASS" : "FAIL") << "\n";
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "duration %.1f min (wall %.1f s), warm-up %.0f s, %zu /proc samples (%zu after "
+                "warm-up)\n",
+                minutes, wall_s, warmup_s, samples.size(), steady.size());
+  txt << line;
+  std::snprintf(line, sizeof line,
+                "daemon status: cycles %lld, seq %lld, overruns %lld, missing %lld, board seq gaps "
+                "%lld, publish failures %lld\n",
+                static_cast<long long>(last.cycles), static_cast<long long>(last.seq),
+                static_cast<long long>(last.overruns), static_cast<long long>(last.missing_samples),
+                static_cast<long long>(last.seq_gaps),
+                static_cast<long long>(last.publish_failures));
+  txt << line;
+  std::snprintf(line, sizeof line,
+                "subscriber: joint_state %lld (seq %lld..%lld, holes %lld, uncounted %lld), "
+                "palm_pose %lld (valid %lld), encoder_raw %lld, status %zu\n",
+                static_cast<long long>(sub.joints), static_cast<long long>(sub.first_seq),
+                static_cast<long long>(sub.last_seq), static_cast<long long>(sub.holes),
+                static_cast<long long>(uncounted), static_cast<long long>(sub.palms),
+                static_cast<long long>(sub.valid_palms), static_cast<long long>(sub.raws),
+                sub.statuses.size());
+  txt << line;
+  std::snprintf(line, sizeof line,
+                "RSS: first %ld KiB, after warm-up %ld..%ld KiB (spread %ld KiB), last %ld KiB, "
+                "peak (VmHWM) %ld KiB; fds after warm-up %ld..%ld (start %ld); threads %ld\n",
+                first_rss, rss_min, rss_max, rss_max - rss_min, last_rss, hwm, fd_min, fd_max,
+                fd_start, threads);
+  txt << line;
+  std::snprintf(line, sizeof line,
+                "lateness (status windows of 100 ms, %zu): median p50 %.1f us, median p99 %.1f "
+                "us, worst p99 %.1f us, worst max %.1f us; work p99 median %.1f us\n",
+                p50.size(), percentile(p50, 50), percentile(p99, 50), percentile(p99, 100),
+                percentile(mx, 100), percentile(work99, 50));
+  txt << line;
+  txt << "states (status messages):";
+  for (const auto& [state, n] : states) txt << " " << state << "=" << n;
+  txt << "\n";
+  for (const auto& c : checks) txt << (c.ok ? "  ok   " : "  FAIL ") << c.what << "\n";
+
+  std::ostringstream js;
+  js << "{\n  \"pass\": " << (pass ? "true" : "false") << ",\n  \"minutes\": " << minutes
+     << ",\n  \"wall_s\": " << wall_s << ",\n  \"warmup_s\": " << warmup_s
+     << ",\n  \"daemon_exit\": " << (code ? *code : -1)
+     << ",\n  \"status\": {\"cycles\": " << last.cycles << ", \"seq\": " << last.seq
+     << ", \"overruns\": " << last.overruns << ", \"missing_samples\": " << last.missing_samples
+     << ", \"seq_gaps\": " << last.seq_gaps << ", \"publish_failures\": " << last.publish_failures
+     << "},\n  \"subscriber\": {\"joint_state\": " << sub.joints
+     << ", \"first_seq\": " << sub.first_seq << ", \"last_seq\": " << sub.last_seq
+     << ", \"holes\": " << sub.holes << ", \"uncounted_gaps\": " << uncounted
+     << ", \"palm_pose\": " << sub.palms << ", \"valid_palm_pose\": " << sub.valid_palms
+     << ", \"encoder_raw\": " << sub.raws << ", \"status\": " << sub.statuses.size()
+     << "},\n  \"rss_kib\": {\"first\": " << first_rss << ", \"min_after_warmup\": " << rss_min
+     << ", \"max_after_warmup\": " << rss_max << ", \"last\": " << last_rss << ", \"hwm\": " << hwm
+     << "},\n  \"fds\": {\"at_warmup\": " << fd_start << ", \"min\": " << fd_min
+     << ", \"max\": " << fd_max << "},\n  \"threads\": " << threads
+     << ",\n  \"lateness_us\": {\"median_p50\": " << percentile(p50, 50)
+     << ", \"median_p99\": " << percentile(p99, 50) << ", \"worst_p99\": " << percentile(p99, 100)
+     << ", \"worst_max\": " << percentile(mx, 100) << "},\n  \"samples\": [";
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    js << (i ? ", " : "") << "[" << samples[i].t_s << ", " << samples[i].rss_kb << ", "
+       << samples[i].fds << "]";
+  }
+  js << "],\n  \"checks\": [";
+  for (std::size_t i = 0; i < checks.size(); ++i) {
+    js << (i ? ",\n    " : "\n    ") << "{\"ok\": " << (checks[i].ok ? "true" : "false")
+       << ", \"what\": \"" << json_escape(checks[i].what) << "\"}";
+  }
+  js << "\n  ]\n}\n";
+  std::ofstream(out_dir + "/soak.json") << js.str();
+  std::ofstream(out_dir + "/soak.txt") << txt.str();
+  std::fputs(txt.str().c_str(), stdout);
+  std::printf("report: %s/soak.txt, %s/soak.json\n", out_dir.c_str(), out_dir.c_str());
+  return pass ? 0 : 1;
+}
