@@ -122,6 +122,8 @@ CandumpError parse_candump_line(std::string_view line, can::CanFrame& out) noexc
     ++pos;
   }
   if (digits == 0 || pos >= line.size() || line[pos] != '.') return CandumpError::kTimestamp;
+  // The stamp in int64 nanoseconds ends in 2262: later ones would overflow.
+  if (seconds > (INT64_MAX - 999'999'999) / 1'000'000'000) return CandumpError::kTimestamp;
   ++pos;
   std::int64_t fraction_ns = 0;
   int fraction_digits = 0;

@@ -53,6 +53,25 @@ struct EventDeleter {
 };
 using EventPtr = std::unique_ptr<lcm_eventlog_event_t, EventDeleter>;
 
+// span * k / d without overflowing (0 < k < d <= 127; a file's stamps may be
+// decades apart): the same value as the plain expression would give.
+std::int64_t fraction_of(std::int64_t span, int k, int d) noexcept {
+  return span / d * k + span % d * k / d;
+}
+
+// Decodes one logged message. LCM's generated decoders (1.3.1) throw
+// std::length_error from std::string instead of returning -1 when damaged data
+// gives a string a length of 0 or less (joint_state_t's joint names): that is
+// a message that does not decode, not a reason to abandon the replay.
+template <typename Message>
+bool decode_event(Message& msg, const lcm_eventlog_event_t& ev) noexcept {
+  try {
+    return msg.decode(ev.data, 0, ev.datalen) >= 0;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
 // What a recorded joint_state_t tells about its cycle that the raw message does not.
 struct RecordedLoopInfo {
   std::int64_t seq = -1;
@@ -229,7 +248,7 @@ void ReplaySource::load_lcm() {
     ++summary_.events;
     const std::string_view channel(ev->channel, static_cast<std::size_t>(ev->channellen));
     if (have_joint_channel && channel == joint_channel) {
-      if (js.decode(ev->data, 0, ev->datalen) < 0) continue;
+      if (!decode_event(js, *ev)) continue;
       RecordedLoopInfo& slot = recent[static_cast<std::size_t>(js.seq) % kRing];
       slot.seq = js.seq;
       slot.run_id = js.run_id;
@@ -241,11 +260,22 @@ void ReplaySource::load_lcm() {
       continue;
     }
     if (channel != raw_channel) continue;
-    if (raw.decode(ev->data, 0, ev->datalen) < 0) {
+    if (!decode_event(raw, *ev)) {
       ++loaded_stats_.bad_frames;
       if (issues_.size() < kMaxStoredIssues) {
         issues_.push_back(
             {ev->eventnum, "event on " + raw_channel + " does not decode as exodaq.encoder_raw_t"});
+      }
+      continue;
+    }
+    // Values no daemon writes (damaged data): a utime whose nanoseconds do not
+    // fit in int64 (after 2262), a negative or last-possible seq.
+    constexpr std::int64_t kMaxUtime = INT64_MAX / 1000;
+    if (raw.utime > kMaxUtime || raw.utime < -kMaxUtime || raw.seq < 0 || raw.seq == INT64_MAX) {
+      ++loaded_stats_.bad_frames;
+      if (issues_.size() < kMaxStoredIssues) {
+        issues_.push_back({ev->eventnum, "event on " + raw_channel +
+                                             " has an impossible utime or seq (damaged log)"});
       }
       continue;
     }
@@ -372,8 +402,8 @@ void ReplaySource::load_candump() {
         m.sample.index_latched = 0;
         m.sample.index_count_valid = 0;
         m.sample.flags = sample_flag::kMissing | sample_flag::kReplay;
-        m.sample.mono_ns = previous.mono_ns + (s.mono_ns - previous.mono_ns) * k / d;
-        m.sample.wall_ns = previous.wall_ns + (s.wall_ns - previous.wall_ns) * k / d;
+        m.sample.mono_ns = previous.mono_ns + fraction_of(s.mono_ns - previous.mono_ns, k, d);
+        m.sample.wall_ns = previous.wall_ns + fraction_of(s.wall_ns - previous.wall_ns, k, d);
         entries_.push_back(m);
         ++loaded_stats_.missing_samples;
       }
