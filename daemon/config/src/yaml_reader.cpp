@@ -74,6 +74,14 @@ MapReader::MapReader(std::string file, YAML::Node node, std::string context)
   if (!node_.IsMap()) {
     fail(node_, context_ + " must be a mapping, found " + kind_name(node_));
   }
+  // YAML forbids duplicate keys, but yaml-cpp keeps them and its lookups see
+  // only the first: a second 'rate_hz:' would be ignored without a word.
+  std::set<std::string> seen;
+  for (const auto& kv : node_) {
+    if (kv.first.IsScalar() && !seen.insert(kv.first.Scalar()).second) {
+      fail(kv.first, "duplicate key '" + kv.first.Scalar() + "' in " + context_);
+    }
+  }
 }
 
 void MapReader::fail(const YAML::Node& at, const std::string& what) const {
