@@ -135,6 +135,35 @@ ProcSample sample_proc(pid_t pid, double t_s) {
   return p;
 }
 
+// Datagrams the kernel dropped on this process's UDP sockets (the drops
+// column of /proc/net/udp for the inodes of our socket fds), -1 if unknown.
+long udp_socket_drops() {
+  std::vector<std::string> inodes;
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it("/proc/self/fd", ec), end; !ec && it != end;
+       it.increment(ec)) {
+    std::error_code e2;
+    const std::string target = std::filesystem::read_symlink(it->path(), e2).string();
+    if (!e2 && target.rfind("socket:[", 0) == 0) {
+      inodes.push_back(target.substr(8, target.size() - 9));
+    }
+  }
+  std::ifstream in("/proc/net/udp");
+  std::string line;
+  long drops = -1;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::istringstream f(line);
+    std::vector<std::string> col;
+    for (std::string c; f >> c;) col.push_back(c);
+    if (col.size() < 13) continue;
+    if (std::find(inodes.begin(), inodes.end(), col[9]) != inodes.end()) {
+      drops = std::max(drops, 0L) + std::strtol(col.back().c_str(), nullptr, 10);
+    }
+  }
+  return drops;
+}
+
 double percentile(std::vector<double> v, double p) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
@@ -201,13 +230,33 @@ int main(int argc, char** argv) {
 
   Subscriber sub;
   sub.prefix = exodaq::test::unique_prefix("soak");
-  const std::string config = exodaq::test::write_sim_config(out_dir, sub.prefix);
-  lcm_t* lcm = lcm_create(exodaq::test::kLcmUrl.c_str());
-  if (lcm == nullptr) {
-    std::fprintf(stderr, "soak: cannot open LCM %s\n", exodaq::test::kLcmUrl.c_str());
+  // A private UDP port: other daemons on this machine (concurrent tests) do
+  // not fill this subscriber's socket. The subscriber keeps up by design: a
+  // 4 MiB receive buffer and an unbounded LCM queue (LCM's default of 30
+  // queued messages per subscription is 10 ms at 3 kHz), so a gap it sees is
+  // the daemon's, and its own socket's drop counter is reported.
+  const int port = 7668 + static_cast<int>(getpid() % 1000);
+  std::string config_text =
+      exodaq::test::read_file(exodaq::test::write_sim_config(out_dir, sub.prefix));
+  const std::string from = ":7667?";
+  const auto at = config_text.find(from);
+  if (at == std::string::npos) {
+    std::fprintf(stderr, "soak: no LCM URL with port 7667 in the sim config\n");
     return 1;
   }
-  lcm_subscribe(lcm, (sub.prefix + "EXO_.*").c_str(), on_message, &sub);
+  config_text.replace(at, from.size(), ":" + std::to_string(port) + "?");
+  const std::string config = out_dir + "/exodaqd.yaml";
+  std::ofstream(config) << config_text;
+  const std::string url =
+      "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0&recv_buf_size=4194304";
+  lcm_t* lcm = lcm_create(url.c_str());
+  if (lcm == nullptr) {
+    std::fprintf(stderr, "soak: cannot open LCM %s\n", url.c_str());
+    return 1;
+  }
+  lcm_subscription_t* subscription =
+      lcm_subscribe(lcm, (sub.prefix + "EXO_.*").c_str(), on_message, &sub);
+  lcm_subscription_set_queue_capacity(subscription, 0);
   std::atomic<bool> stop{false};
   std::thread listener([&] {
     while (!stop.load()) lcm_handle_timeout(lcm, 50);
@@ -245,6 +294,7 @@ int main(int argc, char** argv) {
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   stop.store(true);
   listener.join();
+  const long socket_drops = udp_socket_drops();
   lcm_destroy(lcm);
   const double wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
 
@@ -340,12 +390,13 @@ int main(int argc, char** argv) {
   txt << line;
   std::snprintf(line, sizeof line,
                 "subscriber: joint_state %lld (seq %lld..%lld, holes %lld, uncounted %lld), "
-                "palm_pose %lld (valid %lld), encoder_raw %lld, status %zu\n",
+                "palm_pose %lld (valid %lld), encoder_raw %lld, status %zu; its socket dropped "
+                "%ld datagrams\n",
                 static_cast<long long>(sub.joints), static_cast<long long>(sub.first_seq),
                 static_cast<long long>(sub.last_seq), static_cast<long long>(sub.holes),
                 static_cast<long long>(uncounted), static_cast<long long>(sub.palms),
                 static_cast<long long>(sub.valid_palms), static_cast<long long>(sub.raws),
-                sub.statuses.size());
+                sub.statuses.size(), socket_drops);
   txt << line;
   std::snprintf(line, sizeof line,
                 "RSS: first %ld KiB, after warm-up %ld..%ld KiB (spread %ld KiB), last %ld KiB, "
@@ -376,8 +427,9 @@ int main(int argc, char** argv) {
      << ", \"holes\": " << sub.holes << ", \"uncounted_gaps\": " << uncounted
      << ", \"palm_pose\": " << sub.palms << ", \"valid_palm_pose\": " << sub.valid_palms
      << ", \"encoder_raw\": " << sub.raws << ", \"status\": " << sub.statuses.size()
-     << "},\n  \"rss_kib\": {\"first\": " << first_rss << ", \"min_after_warmup\": " << rss_min
-     << ", \"max_after_warmup\": " << rss_max << ", \"last\": " << last_rss << ", \"hwm\": " << hwm
+     << ", \"socket_drops\": " << socket_drops << "},\n  \"rss_kib\": {\"first\": " << first_rss
+     << ", \"min_after_warmup\": " << rss_min << ", \"max_after_warmup\": " << rss_max
+     << ", \"last\": " << last_rss << ", \"hwm\": " << hwm
      << "},\n  \"fds\": {\"at_warmup\": " << fd_start << ", \"min\": " << fd_min
      << ", \"max\": " << fd_max << "},\n  \"threads\": " << threads
      << ",\n  \"lateness_us\": {\"median_p50\": " << percentile(p50, 50)
