@@ -7,6 +7,7 @@
 #include <spdlog/spdlog.h>
 #include <systemd/sd-daemon.h>
 #include <time.h>
+#include <exception>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
@@ -16,7 +17,7 @@
 #include "exodaq/core/daemon_runtime.hpp"
 #include "exodaq/version.hpp"
 
-int main(int argc, char** argv) {
+static int run_main(int argc, char** argv) {
   CLI::App app{"exodaqd: exoskeleton encoder acquisition service (1 kHz, LCM)"};
   std::string config_path;
   bool check_only = false;
@@ -52,4 +53,16 @@ int main(int argc, char** argv) {
   options.duration_s = duration_s;
   options.lateness_log = lateness_log;
   return exodaq::core::run_daemon(options);
+}
+
+// Nothing escapes main: an unexpected exception is reported and exits 1.
+int main(int argc, char** argv) {
+  try {
+    return run_main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  } catch (...) {
+    std::fprintf(stderr, "%s: unknown error\n", argv[0]);
+  }
+  return 1;
 }

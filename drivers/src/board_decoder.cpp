@@ -112,7 +112,7 @@ void BoardDecoder::on_counts(const can::CanFrame& frame, const can::CountsPayloa
 
   EncoderSample& s = pending_.sample;
   for (int i = 0; i < can::kChannelsPerCountsFrame; ++i) {
-    s.count16[static_cast<std::size_t>(counts.first_channel + i)] =
+    s.count16[static_cast<std::size_t>(counts.first_channel) + static_cast<std::size_t>(i)] =
         counts.count16[static_cast<std::size_t>(i)];
   }
   s.index_latched |= static_cast<std::uint32_t>(counts.index_latched & 0x07)

@@ -17,6 +17,7 @@
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
+#include <exception>
 
 #include <CLI/CLI.hpp>
 #include <array>
@@ -383,7 +384,7 @@ void print_counters(const Counters& c) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+static int run_main(int argc, char** argv) {
   CLI::App app{
       "exodaq-board-sim: the encoder interface board (CAN protocol v1) on a CAN interface"};
   std::string iface;
@@ -556,4 +557,16 @@ int main(int argc, char** argv) {
     return 2;
   }
   return 0;
+}
+
+// Nothing escapes main: an unexpected exception is reported and exits 1.
+int main(int argc, char** argv) {
+  try {
+    return run_main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  } catch (...) {
+    std::fprintf(stderr, "%s: unknown error\n", argv[0]);
+  }
+  return 1;
 }

@@ -56,7 +56,7 @@ std::string find_script(const PlotOptions& o) {
   std::error_code ec;
   const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
   if (!ec) {
-    const std::string candidate =
+    std::string candidate =
         (exe.parent_path().parent_path() / "share/exodaq/plot/exodaq_plot.py").string();
     if (is_file(candidate)) return candidate;
   }

@@ -2,6 +2,7 @@
 // export, plot, calibrate). Each command is in its own cmd_*.cpp.
 #include <algorithm>
 #include <cstdio>
+#include <exception>
 #include <iostream>
 
 #include "command.hpp"
@@ -14,7 +15,7 @@ std::vector<Command>& command_registry() {
 }
 }  // namespace exodaq::tools
 
-int main(int argc, char** argv) {
+static int run_main(int argc, char** argv) {
   using exodaq::tools::command_registry;
   CLI::App app{"exodaq: tools for the exoskeleton data-acquisition service"};
   app.set_version_flag(
@@ -41,4 +42,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "exodaq: %s\n", e.what());
     return exodaq::tools::kExitUsage;
   }
+}
+
+// Nothing escapes main: an unexpected exception is reported and exits 1.
+int main(int argc, char** argv) {
+  try {
+    return run_main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", argv[0], e.what());
+  } catch (...) {
+    std::fprintf(stderr, "%s: unknown error\n", argv[0]);
+  }
+  return 1;
 }

@@ -242,9 +242,9 @@ KinematicModel load_model_text(const std::string& text, const std::string& name)
 }
 
 std::string default_model_path() {
-  const std::string installed = "/etc/exodaq/models/macaque_exo.yaml";
+  std::string installed = "/etc/exodaq/models/macaque_exo.yaml";
 #ifdef EXODAQ_SOURCE_DIR
-  const std::string source = std::string(EXODAQ_SOURCE_DIR) + "/config/models/macaque_exo.yaml";
+  std::string source = std::string(EXODAQ_SOURCE_DIR) + "/config/models/macaque_exo.yaml";
   struct stat st {};
   if (::stat(source.c_str(), &st) == 0) return source;
 #endif

@@ -69,8 +69,8 @@ YAML::Node load_yaml_file(const std::string& path) {
   return load_yaml_text(text.str(), path);
 }
 
-MapReader::MapReader(std::string file, YAML::Node node, std::string context)
-    : file_(std::move(file)), node_(std::move(node)), context_(std::move(context)) {
+MapReader::MapReader(std::string file, const YAML::Node& node, std::string context)
+    : file_(std::move(file)), node_(node), context_(std::move(context)) {
   if (!node_.IsMap()) {
     fail(node_, context_ + " must be a mapping, found " + kind_name(node_));
   }

@@ -50,7 +50,12 @@ bool stderr_is_journal() {
   if (stream == nullptr) return false;
   unsigned long long dev = 0;
   unsigned long long ino = 0;
-  if (std::sscanf(stream, "%llu:%llu", &dev, &ino) != 2) return false;
+  char* end = nullptr;
+  dev = std::strtoull(stream, &end, 10);
+  if (end == stream || *end != ':') return false;
+  const char* rest = end + 1;
+  ino = std::strtoull(rest, &end, 10);
+  if (end == rest || *end != '\0') return false;
   struct stat st {};
   if (fstat(STDERR_FILENO, &st) != 0) return false;
   return static_cast<unsigned long long>(st.st_dev) == dev &&
@@ -434,7 +439,7 @@ int run_daemon(const DaemonOptions& options) {
   bool realtime_logged = false;
   bool stall_logged = false;
   const char* stall_env = std::getenv("EXODAQ_TEST_STALL_AFTER_CYCLES");
-  const std::int64_t stall_after = stall_env != nullptr ? std::atoll(stall_env) : -1;
+  const std::int64_t stall_after = stall_env != nullptr ? std::strtoll(stall_env, nullptr, 10) : -1;
 
   int exit_code = 0;
   bool running = true;

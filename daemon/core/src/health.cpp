@@ -1,6 +1,7 @@
 #include "exodaq/core/health.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace exodaq::core {
 
@@ -28,7 +29,7 @@ Percentiles TimingWindow::percentiles() noexcept {
   auto* begin = values_.data();
   auto* end = begin + n_;
   const auto at = [&](double q) {
-    const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(n_ - 1) + 0.5);
+    const auto k = static_cast<std::ptrdiff_t>(std::lround(q * static_cast<double>(n_ - 1)));
     std::nth_element(begin, begin + k, end);
     return static_cast<double>(begin[k]) / 1000.0;
   };

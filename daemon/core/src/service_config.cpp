@@ -361,7 +361,7 @@ AcquisitionConfig make_acquisition_config(const ServiceConfig& c) {
   a.lock_memory = c.loop.lock_memory;
   a.fault_after_ms = c.loop.fault_after_ms;
   a.status_every_cycles =
-      std::max(1, static_cast<int>(c.loop.rate_hz / c.loop.status_rate_hz + 0.5));
+      std::max(1, static_cast<int>(std::lround(c.loop.rate_hz / c.loop.status_rate_hz)));
   a.publish_raw = c.lcm.publish_raw;
   a.clock = c.clock;
   const auto& joints = c.model.chain.joints();

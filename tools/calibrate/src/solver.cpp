@@ -504,7 +504,7 @@ ErrorStats evaluate(const NominalModel& model, const ParamVector& x,
     res.push_back(Eigen::Vector3d(p.marker[0], p.marker[1], p.marker[2]) -
                   predict_marker(model, x, p.theta_r));
   }
-  const ErrorStats s = error_stats(res);
+  ErrorStats s = error_stats(res);
   if (out) *out = std::move(res);
   return s;
 }

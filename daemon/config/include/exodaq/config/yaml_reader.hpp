@@ -40,7 +40,7 @@ int line_of(const YAML::Node& node) noexcept;  // 1-based, 0 if unknown
 // or named in allow(); finish() reports the first key nobody asked for.
 class MapReader {
  public:
-  MapReader(std::string file, YAML::Node node, std::string context);
+  MapReader(std::string file, const YAML::Node& node, std::string context);
 
   const std::string& file() const noexcept { return file_; }
   const std::string& context() const noexcept { return context_; }
