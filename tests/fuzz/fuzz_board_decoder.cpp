@@ -140,6 +140,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         f.dlc = in.u8();
         f.flags = in.u8();
         in.copy(f.data.data(), f.data.size());
+        const can::Decoded d = can::decode(f, ids);  // may be a valid COUNTS frame
+        if (d.kind == can::FrameKind::kCountsA || d.kind == can::FrameKind::kCountsB) {
+          auto& seen = sent.by_seq[d.counts.seq][d.kind == can::FrameKind::kCountsA ? 0U : 1U];
+          if (seen.size() < 4096) seen.push_back(d.counts.count16);
+        }
         break;
       }
       case 8:
