@@ -1,0 +1,58 @@
+// The fault tests' subscriber process: records every message on channels
+// matching a regex, raw, to a file until SIGTERM/SIGINT, in the format of
+// tests/integration/lcm_recorder.cpp (read_recorder_file reads it). Unlike
+// that one it never drops a message itself: the subscription's queue is
+// unbounded (LCM's default of 30 queued messages is 10 ms at 3 kHz, less than
+// one scheduling delay under stress-ng), so every gap it records is the
+// daemon's. Pass a URL with recv_buf_size for a large socket buffer.
+#include <lcm/lcm.h>
+#include <signal.h>
+#include <time.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+
+namespace {
+volatile sig_atomic_t g_stop = 0;
+void on_signal(int) {
+  g_stop = 1;
+}
+
+void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+  auto* out = static_cast<std::FILE*>(user);
+  const auto clen = static_cast<std::uint32_t>(std::strlen(channel));
+  const auto dlen = static_cast<std::uint32_t>(rbuf->data_size);
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  const std::int64_t now = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+  std::fwrite(&clen, 4, 1, out);
+  std::fwrite(channel, 1, clen, out);
+  std::fwrite(&dlen, 4, 1, out);
+  std::fwrite(rbuf->data, 1, dlen, out);
+  std::fwrite(&now, 8, 1, out);
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 4) {
+    std::fprintf(stderr, "usage: exodaq_fault_recorder URL CHANNEL_REGEX OUTFILE\n");
+    return 2;
+  }
+  ::signal(SIGTERM, on_signal);
+  ::signal(SIGINT, on_signal);
+  lcm_t* lcm = lcm_create(argv[1]);
+  if (lcm == nullptr) {
+    std::fprintf(stderr, "exodaq_fault_recorder: cannot open %s\n", argv[1]);
+    return 1;
+  }
+  std::FILE* out = std::fopen(argv[3], "wb");
+  if (out == nullptr) return 1;
+  lcm_subscription_t* sub = lcm_subscribe(lcm, argv[2], on_message, out);
+  lcm_subscription_set_queue_capacity(sub, 0);
+  std::fprintf(stderr, "exodaq_fault_recorder: ready\n");
+  while (g_stop == 0) lcm_handle_timeout(lcm, 50);
+  std::fclose(out);
+  lcm_destroy(lcm);
+  return 0;
+}
