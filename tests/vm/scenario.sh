@@ -7,7 +7,9 @@
 #     window, cansend injections (wrong DLC, unknown ID, RTR, error frames),
 #     the interface taken down and brought back; the checker asserts the
 #     stream (seq, kernel timestamps, truth, flags, counters, recovery);
-#  3. the candump log goes to the host through the second serial port.
+#  3. the candump log and the checker's dump of the live cycles (joint_state +
+#     encoder_raw by seq) go to the host through the second serial port, for
+#     the host-side replay comparison (vm_vcan_replay); neither changes RC.
 set -u
 B=/exodaq/bin
 C=/exodaq/config
@@ -49,10 +51,11 @@ fi
 # --- 2. daemon + board simulator ------------------------------------------
 step "daemon + board-sim over vcan0"
 cd $W
-candump -l vcan0,0:0,#FFFFFFFF > $W/candump.out 2>&1 &
+candump -l -D vcan0,0:0,#FFFFFFFF > $W/candump.out 2>&1 &
 CD=$!
 $B/exodaq-vcan-check --config $CFG --truth $W/truth.txt --board-log $W/board.log \
-  --injected-bad-frames 3 --injected-error-frames 3 --expect-down > $W/check.log 2>&1 &
+  --injected-bad-frames 3 --injected-error-frames 3 --expect-down \
+  --live-out $W/live.txt > $W/check.log 2>&1 &
 CK=$!
 $B/exodaqd --config $CFG --log-level info > $W/daemon.log 2>&1 &
 DP=$!
@@ -101,12 +104,18 @@ echo "--- checker ---"; cat $W/check.log
 [ $CKRC -eq 0 ] || fail "exodaq-vcan-check rc=$CKRC"
 [ $DRC -eq 0 ] || fail "exodaqd exit code $DRC after SIGTERM"
 
-# --- 3. the candump log to the host (second serial port) -------------------
+# --- 3. the candump log and the live cycles to the host (second serial port) --
 LOG=$(ls $W/candump-*.log 2>/dev/null | head -1)
 if [ -n "$LOG" ]; then
   echo "VM: candump log $(wc -l < "$LOG") frames"
   { echo "VM-CANDUMP-BEGIN"; gzip -c "$LOG" | base64; echo "VM-CANDUMP-END"; } > /dev/ttyS1
 else
   fail "no candump log"
+fi
+if [ -s $W/live.txt ]; then
+  echo "VM: live cycles $(grep -vc '^#' $W/live.txt)"
+  { echo "VM-LIVE-BEGIN"; gzip -c $W/live.txt | base64; echo "VM-LIVE-END"; } > /dev/ttyS1
+else
+  echo "VM: no live cycle dump (vm_vcan_replay will fail)"
 fi
 exit $RC

@@ -15,6 +15,9 @@
 //     counters) and every frame cansend injected was counted and flagged;
 //   - the interface down/up was seen (bus_state DOWN, state degraded/fault)
 //     and recovered (bus ACTIVE, state running at the end).
+// --live-out FILE also writes every received cycle (joint_state_t joined with
+// encoder_raw_t by seq) as text, for the host-side replay comparison
+// (vcan_replay_check.cpp); it does not take part in the checks.
 // Prints a fault table and "VCAN-CHECK: PASS"/"FAIL"; exit 0 only on PASS.
 #include <linux/can.h>
 #include <linux/can/raw.h>
@@ -173,6 +176,31 @@ std::map<std::string, long long> parse_board_log(const std::string& path) {
   return out;
 }
 
+// One line per cycle with both joint_state_t and encoder_raw_t: the live run
+// as exodaq-vcan-replay-check reads it (doubles in %.17g: exact).
+bool write_live(const std::string& path, const Recorder& rec, double rate_hz) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) return false;
+  std::fprintf(f,
+               "# exodaq-vcan-check live cycles, rate_hz %.17g\n"
+               "# seq utime present board_seq wall_ns sample_flags source_flags valid "
+               "count16[6] homed[6] flags[6] position[6]\n",
+               rate_hz);
+  for (std::size_t s = 0; s < rec.recs.size(); ++s) {
+    const Rec& r = rec.recs[s];
+    if (!(r.js && r.raw)) continue;
+    std::fprintf(f, "%zu %lld %d %d %lld %u %u %d", s, static_cast<long long>(r.utime_js),
+                 r.present ? 1 : 0, r.board_seq, static_cast<long long>(r.wall_ns), r.sample_flags,
+                 r.source_flags, r.valid ? 1 : 0);
+    for (auto c : r.count16) std::fprintf(f, " %d", static_cast<int>(c));
+    for (bool h : r.homed) std::fprintf(f, " %d", h ? 1 : 0);
+    for (auto jf : r.jflags) std::fprintf(f, " %u", jf);
+    for (double q : r.pos) std::fprintf(f, " %.17g", q);
+    std::fprintf(f, "\n");
+  }
+  return std::fclose(f) == 0;
+}
+
 int g_failures = 0;
 void check(bool ok, const std::string& what) {
   std::printf("VCAN-CHECK: %s %s\n", ok ? "ok  " : "FAIL", what.c_str());
@@ -183,7 +211,7 @@ void check(bool ok, const std::string& what) {
 
 int main(int argc, char** argv) {
   CLI::App app{"exodaq-vcan-check: subscriber/checker of the vcan VM test"};
-  std::string config_path, truth_path, board_log, iface = "vcan0", url;
+  std::string config_path, truth_path, board_log, iface = "vcan0", url, live_out;
   double duration = 0;
   int injected_bad = 0, injected_errors = 0;
   bool expect_down = false, expect_faults = true;
@@ -198,6 +226,8 @@ int main(int argc, char** argv) {
   app.add_option("--injected-error-frames", injected_errors, "error frames cansend injected");
   app.add_flag("--expect-down", expect_down, "the interface was taken down and up");
   app.add_flag("!--no-faults", expect_faults, "a clean run: no fault may be seen");
+  app.add_option("--live-out", live_out,
+                 "also write every received cycle to this file (not checked here)");
   CLI11_PARSE(app, argc, argv);
 
   const auto cfg = exodaq::core::load_service_config(config_path);
@@ -261,6 +291,12 @@ int main(int argc, char** argv) {
   }
   // Let the last messages in flight arrive.
   for (int i = 0; i < 20; ++i) lc.handleTimeout(10);
+
+  if (!live_out.empty()) {
+    const bool ok = write_live(live_out, rec, cfg.loop.rate_hz);
+    std::printf("VCAN-CHECK: live cycles %s %s\n", ok ? "written to" : "NOT written to",
+                live_out.c_str());
+  }
 
   // --- truth -----------------------------------------------------------
   std::vector<Truth> truth;
