@@ -402,7 +402,7 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   }
 
   ++seq_;
-  cycles_.fetch_add(1, std::memory_order_relaxed);
+  cycles_.fetch_add(1, std::memory_order_release);  // publishes realtime_report_ (cycles())
   const std::int64_t end = mono_now();
   work_window_.add(end - wake_ns);
   // The window closes on the cycle's own clock (the simulated one when tests

@@ -92,7 +92,9 @@ class Acquisition {
   bool pop_event(LogEvent& out) noexcept;
 
   // Observers (any thread).
-  std::int64_t cycles() const noexcept { return cycles_.load(std::memory_order_relaxed); }
+  // Acquire: once cycles() > 0, what the loop thread wrote before its first
+  // cycle (realtime_report()) is visible to the caller.
+  std::int64_t cycles() const noexcept { return cycles_.load(std::memory_order_acquire); }
   ServiceState state() const noexcept { return state_.load(std::memory_order_relaxed); }
   bool finished() const noexcept { return finished_.load(std::memory_order_acquire); }
   std::int64_t overruns() const noexcept { return overruns_.load(std::memory_order_relaxed); }
