@@ -38,6 +38,11 @@ ReadStatus SimSource::read(const CycleTime& time, EncoderSample& out) noexcept {
   // nobody read, seen by the decoder as a sequence gap, and sample k is always
   // taken at t_k = k * period. Callers that do not count cycles get 0, 1, 2...
   const std::int64_t k = time.cycle > cycle_ ? time.cycle : cycle_;
+  if (cycle_ == 0 && options_.start_mono_ns == 0 && time.deadline_mono_ns > 0) {
+    // The board samples at the loop's deadlines: sample k is taken at deadline
+    // k, so stamps and the loop's clock agree (t_k = k * period still holds).
+    start_mono_ns_ = time.deadline_mono_ns - k * options_.period_ns;
+  }
   cycle_ = k + 1;
   const int n = rig_.step(k, frames_, start_mono_ns_, wall_offset_ns_);
   for (int i = 0; i < n; ++i) decoder_.on_frame(frames_[static_cast<std::size_t>(i)]);

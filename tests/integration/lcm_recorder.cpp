@@ -45,7 +45,10 @@ int main(int argc, char** argv) {
   }
   std::FILE* out = std::fopen(argv[3], "wb");
   if (out == nullptr) return 1;
-  lcm_subscribe(lcm, argv[2], on_message, out);
+  // No queue limit: LCM's default of 30 messages is 10 ms at 3 kHz, and a
+  // recorder that drops messages itself would blame the daemon.
+  lcm_subscription_t* sub = lcm_subscribe(lcm, argv[2], on_message, out);
+  lcm_subscription_set_queue_capacity(sub, 0);
   std::fprintf(stderr, "lcm_recorder: ready\n");
   while (g_stop == 0) lcm_handle_timeout(lcm, 50);
   std::fclose(out);

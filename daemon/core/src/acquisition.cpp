@@ -416,17 +416,7 @@ void Acquisition::encode_cycle(const drivers::EncoderSample& sample) noexcept {
   joint_msg_.utime = palm_msg_.utime = raw_msg_.utime = r.utime_us;
   joint_msg_.mono_ns = palm_msg_.mono_ns = raw_msg_.mono_ns = r.mono_ns;
   joint_msg_.seq = palm_msg_.seq = raw_msg_.seq = r.seq;
-  for (int i = 0; i < kJointCount; ++i) {
-    const JointReading& j = r.joints[static_cast<std::size_t>(i)];
-    joint_msg_.position[i] = j.position_rad;
-    joint_msg_.velocity[i] = j.velocity_rad_s;
-    joint_msg_.raw_count[i] = j.count;
-    joint_msg_.homed[i] = j.homed;
-    joint_msg_.flags[i] = static_cast<std::int32_t>(j.flags);
-  }
-  joint_msg_.sample_flags = static_cast<std::int32_t>(r.sample_flags);
-  encode(ChannelId::kJointState, joint_msg_, r.utime_us);
-
+  // The palm pose first: it is what a BMI decoder waits for.
   palm_msg_.valid = r.valid;
   palm_msg_.invalid_reason = static_cast<std::int32_t>(r.invalid_reason);
   for (int k = 0; k < 3; ++k) {
@@ -438,6 +428,17 @@ void Acquisition::encode_cycle(const drivers::EncoderSample& sample) noexcept {
   palm_msg_.shoulder_manipulability_raw = r.pose.shoulder_manipulability;
   palm_msg_.near_singular = r.pose.near_singular;
   encode(ChannelId::kPalmPose, palm_msg_, r.utime_us);
+
+  for (int i = 0; i < kJointCount; ++i) {
+    const JointReading& j = r.joints[static_cast<std::size_t>(i)];
+    joint_msg_.position[i] = j.position_rad;
+    joint_msg_.velocity[i] = j.velocity_rad_s;
+    joint_msg_.raw_count[i] = j.count;
+    joint_msg_.homed[i] = j.homed;
+    joint_msg_.flags[i] = static_cast<std::int32_t>(j.flags);
+  }
+  joint_msg_.sample_flags = static_cast<std::int32_t>(r.sample_flags);
+  encode(ChannelId::kJointState, joint_msg_, r.utime_us);
 
   if (config_.publish_raw) {
     raw_msg_.present = sample.present;
@@ -455,6 +456,7 @@ void Acquisition::encode_cycle(const drivers::EncoderSample& sample) noexcept {
     raw_msg_.wall_ns = sample.wall_ns;
     encode(ChannelId::kEncoderRaw, raw_msg_, r.utime_us);
   }
+  publisher_.notify();
 }
 
 void Acquisition::finish_window(std::int64_t now_mono) noexcept {
@@ -566,6 +568,7 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   }
   s.message.assign(text);
   encode(ChannelId::kStatus, s, s.utime);
+  publisher_.notify();
 
   period_window_.clear();
   lateness_window_.clear();

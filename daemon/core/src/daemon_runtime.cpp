@@ -528,7 +528,7 @@ int run_daemon(const DaemonOptions& options) {
     }
   }
   spdlog::info("stopped after {} cycles ({} overruns, {} publish failures){}", acq->cycles(),
-               acq->overruns(), acq->publisher().failures(),
+               acq->overruns(), acq->publisher().failures() + acq->publisher().ring_drops(),
                fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", std::to_string(run_id)}}));
   logger->flush();
   spdlog::shutdown();

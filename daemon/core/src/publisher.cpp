@@ -90,6 +90,9 @@ void Publisher::commit() noexcept {
   if (!reserved_) return;
   reserved_ = false;
   head_.store(head_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
+}
+
+void Publisher::notify() noexcept {
   sem_post(&ready_);  // never blocks
 }
 

@@ -20,7 +20,9 @@ inline constexpr int kChannelIdCount = 4;
 // Base names; the configured prefix goes in front.
 const char* channel_base_name(ChannelId id) noexcept;
 
-inline constexpr std::size_t kMaxMessageBytes = 2048;
+// The largest message (status_t with a full 255-character message and 31-character
+// joint names) is about 1 KiB; start-up checks every message fits.
+inline constexpr std::size_t kMaxMessageBytes = 1536;
 
 struct OutgoingMessage {
   ChannelId channel = ChannelId::kJointState;
@@ -43,8 +45,11 @@ std::unique_ptr<MessageSink> make_lcm_sink(const std::string& url);
 
 class Publisher {
  public:
+  // 2048 slots hold ~680 ms of messages at 1 kHz: the publisher thread is
+  // SCHED_OTHER and may be held off that long on a loaded machine before the
+  // ring fills and messages are dropped (counted in publish_failures).
   Publisher(std::unique_ptr<MessageSink> sink, const std::string& prefix,
-            std::size_t capacity = 1024);
+            std::size_t capacity = 2048);
   ~Publisher();
   Publisher(const Publisher&) = delete;
   Publisher& operator=(const Publisher&) = delete;
@@ -53,9 +58,12 @@ class Publisher {
   void stop() noexcept;  // drains what is queued, then joins
 
   // Loop thread: a slot to encode into, or nullptr when the ring is full (the
-  // message is dropped and counted). commit() hands it over.
+  // message is dropped and counted). commit() hands it over; notify() wakes
+  // the publisher thread once for everything committed since the last call
+  // (one wake-up per cycle, not per message).
   OutgoingMessage* acquire() noexcept;
   void commit() noexcept;
+  void notify() noexcept;
 
   // Blocks until everything committed so far has been handed to the sink (tests, replay).
   void drain() noexcept;
