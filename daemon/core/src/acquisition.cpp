@@ -461,6 +461,10 @@ void Acquisition::encode_cycle(const drivers::EncoderSample& sample) noexcept {
 
 void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   const drivers::SourceStats stats = source_->stats();
+  published_missing_.store(stats.missing_samples, std::memory_order_relaxed);
+  published_seq_gaps_.store(stats.seq_gaps, std::memory_order_relaxed);
+  published_bus_errors_.store(stats.bus_errors, std::memory_order_relaxed);
+  published_bus_state_.store(stats.bus_state, std::memory_order_relaxed);
   const std::int64_t overruns = overruns_.load(std::memory_order_relaxed);
   facts_.overruns = overruns - window_overruns_start_;
   window_overruns_start_ = overruns;

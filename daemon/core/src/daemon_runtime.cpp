@@ -311,7 +311,7 @@ const char* bus_state_text(drivers::BusState s) {
 
 // STATUS= for systemctl status: state, loop rate, drops, clock health.
 std::string status_line(Acquisition& acq, double rate_hz) {
-  const auto stats = acq.source().stats();
+  const auto stats = acq.source_counters();
   const ClockShared& clock = acq.clock_shared();
   const char* clock_text = !clock.health_valid.load()  ? "clock health unknown"
                            : clock.synchronised.load() ? "clock synchronised"

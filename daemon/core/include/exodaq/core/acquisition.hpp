@@ -102,6 +102,22 @@ class Acquisition {
   const ClockShared& clock_shared() const noexcept { return clock_shared_; }
   Publisher& publisher() noexcept { return publisher_; }
   const drivers::EncoderSource& source() const noexcept { return *source_; }
+  // The source's counters as of the last status window, safe to read from any
+  // thread (the source itself is the loop thread's alone).
+  struct SourceCounters {
+    std::int64_t missing_samples = 0;
+    std::int64_t seq_gaps = 0;
+    std::int64_t bus_errors = 0;
+    drivers::BusState bus_state = drivers::BusState::kUnknown;
+  };
+  SourceCounters source_counters() const noexcept {
+    SourceCounters c;
+    c.missing_samples = published_missing_.load(std::memory_order_relaxed);
+    c.seq_gaps = published_seq_gaps_.load(std::memory_order_relaxed);
+    c.bus_errors = published_bus_errors_.load(std::memory_order_relaxed);
+    c.bus_state = published_bus_state_.load(std::memory_order_relaxed);
+    return c;
+  }
   // Whether the loop thread got the scheduling/locking it asked for.
   const std::string& realtime_report() const noexcept { return realtime_report_; }
 
@@ -174,6 +190,10 @@ class Acquisition {
 
   std::atomic<std::int64_t> cycles_{0};
   std::atomic<std::int64_t> overruns_{0};
+  std::atomic<std::int64_t> published_missing_{0};
+  std::atomic<std::int64_t> published_seq_gaps_{0};
+  std::atomic<std::int64_t> published_bus_errors_{0};
+  std::atomic<drivers::BusState> published_bus_state_{drivers::BusState::kUnknown};
   std::atomic<ServiceState> state_{ServiceState::kStarting};
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> finished_{false};
