@@ -244,7 +244,9 @@ void ReplaySource::load_lcm() {
   EncoderSample previous{};
   bool have_previous = false;
   EventLog log(path);
+  long good_end = 0;  // the file offset just after the last event read whole
   while (EventPtr ev{lcm_eventlog_read_next_event(log.log)}) {
+    good_end = std::ftell(log.log->f);
     ++summary_.events;
     const std::string_view channel(ev->channel, static_cast<std::size_t>(ev->channellen));
     if (have_joint_channel && channel == joint_channel) {
@@ -365,6 +367,22 @@ void ReplaySource::load_lcm() {
     have_previous = true;
     previous_seq = raw.seq;
     entries_.push_back(e);
+  }
+  // LCM's reader stops at the first damaged event header without telling the
+  // caller: compare where it stopped with the file's size, so a truncated or
+  // corrupt log is reported instead of silently replaying less.
+  {
+    const long stopped_at = good_end;
+    if (std::fseek(log.log->f, 0, SEEK_END) == 0) {
+      const long size = std::ftell(log.log->f);
+      if (stopped_at >= 0 && size > stopped_at) {
+        issues_.push_back({summary_.events + 1, "log damaged or truncated after event " +
+                                                    std::to_string(summary_.events) + ": bytes " +
+                                                    std::to_string(stopped_at) + ".." +
+                                                    std::to_string(size) + " of '" + path +
+                                                    "' were not replayed"});
+      }
+    }
   }
   summary_.missing = loaded_stats_.missing_samples;
   if (!have_run) {
