@@ -8,6 +8,7 @@
 #include <cmath>
 #include <vector>
 
+#include "matrix_checks.hpp"
 #include "scenario.hpp"
 
 using exodaq::joint_state_t;
@@ -19,63 +20,9 @@ using exodaq::test::kHomedBy;
 using exodaq::test::run_scenario;
 using exodaq::test::ScenarioResult;
 using exodaq::test::sim_config;
+using exodaq::test::valid_means_right;
 
 namespace {
-constexpr std::int32_t kFaultFlags =
-    std::int32_t{joint_state_t::JOINT_UNHOMED} | joint_state_t::JOINT_STALE |
-    joint_state_t::JOINT_GLITCH | joint_state_t::JOINT_OUT_OF_RANGE |
-    joint_state_t::JOINT_LOST_COUNTS | joint_state_t::JOINT_HOMING_REJECTED |
-    joint_state_t::JOINT_BOARD_ERROR;
-
-double truth(const ScenarioResult& r, std::int64_t seq, int j) {
-  return r.sim->rig()
-      .motion()
-      .truth(r.sim->rig().sample_time_s(seq))
-      .position[static_cast<std::size_t>(j)];
-}
-
-// Every palm pose published valid has every joint homed, unflagged and within
-// one count of the truth (plus `extra_counts(seq, j)` of real motion a fault
-// added). Returns how many valid poses there were.
-template <typename Extra>
-int check_valid_means_right(const ScenarioResult& r, Extra extra_counts,
-                            std::int64_t skip_from = -1, std::int64_t skip_to = -1) {
-  int valid = 0;
-  for (std::size_t k = 0; k < r.cycles.size(); ++k) {
-    const Cycle& c = r.cycles[k];
-    EXPECT_EQ(c.joint.seq, static_cast<std::int64_t>(k)) << "missing cycle " << k;
-    EXPECT_EQ(c.palm.seq, static_cast<std::int64_t>(k));
-    if (!c.palm.valid) {
-      EXPECT_NE(c.palm.invalid_reason, 0) << "invalid without a reason at seq " << k;
-      continue;
-    }
-    ++valid;
-    EXPECT_EQ(c.palm.invalid_reason, 0);
-    for (int j = 0; j < 6; ++j) {
-      if (!c.joint.homed[j] || (c.joint.flags[j] & kFaultFlags) != 0) {
-        ADD_FAILURE() << "valid palm with joint " << j << " flags " << c.joint.flags[j]
-                      << " at seq " << k;
-        return valid;
-      }
-      if (static_cast<std::int64_t>(k) >= skip_from && static_cast<std::int64_t>(k) < skip_to)
-        continue;
-      const double expect = truth(r, static_cast<std::int64_t>(k), j) +
-                            extra_counts(static_cast<std::int64_t>(k), j) * r.rad_per_count(j);
-      if (std::fabs(c.joint.position[j] - expect) > r.rad_per_count(j) + 1e-9) {
-        ADD_FAILURE() << "valid sample wrong by "
-                      << (c.joint.position[j] - expect) / r.rad_per_count(j) << " counts: joint "
-                      << j << " seq " << k;
-        return valid;
-      }
-    }
-  }
-  return valid;
-}
-
-int check_valid_means_right(const ScenarioResult& r) {
-  return check_valid_means_right(r, [](std::int64_t, int) { return 0.0; });
-}
-
 // The service states in order, consecutive repeats removed.
 std::vector<int> states(const ScenarioResult& r) {
   std::vector<int> out;
@@ -134,7 +81,7 @@ TEST(SimScenario, HomingJointByJointThenRunning) {
   EXPECT_EQ(states(r), (std::vector<int>{kHoming, kRunning}));
   // The first valid palm pose is the cycle where the last joint homed.
   EXPECT_EQ(r.first([](const Cycle& c) { return c.palm.valid; }), previous);
-  EXPECT_GT(check_valid_means_right(r), 2000);
+  EXPECT_GT(valid_means_right(r), 2000);
   EXPECT_EQ(s.missing_samples, 0);
   EXPECT_EQ(s.seq_gaps, 0);
 }
@@ -147,7 +94,7 @@ TEST(SimScenario, HomingWithBeltGearRatiosPicksTheCrossingNearestHome) {
   for (int j = 0; j < 6; ++j) {
     EXPECT_GE(r.first([&](const Cycle& c) { return c.joint.homed[j]; }), 0) << "joint " << j;
   }
-  EXPECT_GT(check_valid_means_right(r), 2000);
+  EXPECT_GT(valid_means_right(r), 2000);
   EXPECT_EQ(int{r.last_status().state}, kRunning);
 }
 
@@ -196,7 +143,7 @@ TEST(SimScenario, CounterGlitchIsFlaggedUntilTheNextIndexThenReHomed) {
   // LOST_COUNTS holds for fault_hold_ms (100 ms) after the correction.
   EXPECT_EQ(count_flag(r, 0, joint_state_t::JOINT_LOST_COUNTS), 100);
   // After the correction the angles are right again (valid poses are checked).
-  EXPECT_GT(check_valid_means_right(r), 10000);
+  EXPECT_GT(valid_means_right(r), 10000);
   const auto st = states(r);
   EXPECT_EQ(st.front(), kHoming);
   EXPECT_NE(std::find(st.begin(), st.end(), kDegraded), st.end());
@@ -223,7 +170,7 @@ TEST(SimScenario, IndexDriftOfFiveCountsIsLostCountsAtTheNextIndex) {
   // Between the loss and the index nothing can know: those samples are
   // excluded from the one-count check (docs/operations.md says so); after the
   // re-homing on the index every valid sample is right again.
-  EXPECT_GT(check_valid_means_right(
+  EXPECT_GT(valid_means_right(
                 r, [](std::int64_t, int) { return 0.0; }, 12000, detected + 1),
             10000);
 }
@@ -251,7 +198,7 @@ TEST(SimScenario, FiftyMillisecondsOfSilenceIsMissingStaleThenRecovers) {
   EXPECT_TRUE(r.cycles[12050].joint.sample_flags & joint_state_t::SAMPLE_SEQ_GAP);
   EXPECT_TRUE(r.cycles[12050].palm.valid);
   EXPECT_EQ(s.seq_gaps, 1);
-  EXPECT_GT(check_valid_means_right(r), 4000);
+  EXPECT_GT(valid_means_right(r), 4000);
   EXPECT_EQ(states(r), (std::vector<int>{kHoming, kRunning, kDegraded, kRunning}));
 }
 
@@ -267,7 +214,7 @@ TEST(SimScenario, TwoSecondsOfSilenceIsAFaultThenRecoversWithoutReHoming) {
   // for 2 s at these speeds).
   for (int j = 0; j < 6; ++j) EXPECT_EQ(int{s.homing[j]}, int{status_t::HOMING_HOMED});
   EXPECT_TRUE(r.cycles[14000].palm.valid);
-  EXPECT_GT(check_valid_means_right(r), 5000);
+  EXPECT_GT(valid_means_right(r), 5000);
 }
 
 TEST(SimScenario, TenPercentFrameLossIsCountedAndFlaggedCycleByCycle) {
@@ -286,7 +233,7 @@ TEST(SimScenario, TenPercentFrameLossIsCountedAndFlaggedCycleByCycle) {
     }
   }
   EXPECT_EQ(s.seq_gaps, count_sample_flag(r, joint_state_t::SAMPLE_SEQ_GAP));
-  EXPECT_GT(check_valid_means_right(r), 3000);
+  EXPECT_GT(valid_means_right(r), 3000);
 }
 
 TEST(SimScenario, LostCountsBFrameIsAPartialSample) {
@@ -302,7 +249,7 @@ TEST(SimScenario, LostCountsBFrameIsAPartialSample) {
     ASSERT_TRUE(c.joint.flags[4] & joint_state_t::JOINT_HELD);
   }
   for (int j = 3; j < 6; ++j) EXPECT_EQ(r.last_status().stale_events[j], 1);
-  EXPECT_GT(check_valid_means_right(r), 1000);
+  EXPECT_GT(valid_means_right(r), 1000);
 }
 
 TEST(SimScenario, DuplicatedFramesAreDroppedCountedAndFlagged) {
@@ -313,7 +260,7 @@ TEST(SimScenario, DuplicatedFramesAreDroppedCountedAndFlagged) {
   EXPECT_EQ(count_sample_flag(r, joint_state_t::SAMPLE_DUPLICATE), 100);
   // A dropped duplicate does not spoil the sample: still valid and right.
   EXPECT_TRUE(r.cycles[12050].palm.valid);
-  EXPECT_GT(check_valid_means_right(r), 2000);
+  EXPECT_GT(valid_means_right(r), 2000);
 }
 
 TEST(SimScenario, BoardErrorBitsInvalidateUntilTheHeartbeatClears) {
@@ -334,7 +281,7 @@ TEST(SimScenario, BoardErrorBitsInvalidateUntilTheHeartbeatClears) {
                 palm_pose_t::INVALID_SOURCE);
   }
   EXPECT_EQ(r.last_status().board_errors, 0);
-  EXPECT_GT(check_valid_means_right(r), 2000);
+  EXPECT_GT(valid_means_right(r), 2000);
 }
 
 TEST(SimScenario, AJointDrivenBeyondItsLimitIsOutOfRangeWhileThere) {
@@ -359,7 +306,7 @@ TEST(SimScenario, AJointDrivenBeyondItsLimitIsOutOfRangeWhileThere) {
   const auto excursion_counts = [sim](std::int64_t k, int j) {
     return sim->rig().fault_excursion_rad(j, sim->rig().sample_time_s(k)) / (2.0 * M_PI / 10000.0);
   };
-  EXPECT_GT(check_valid_means_right(r, excursion_counts), 2000);
+  EXPECT_GT(valid_means_right(r, excursion_counts), 2000);
 }
 
 TEST(SimScenario, AStuckChannelIsCaughtWhenItResumes) {
@@ -375,7 +322,7 @@ TEST(SimScenario, AStuckChannelIsCaughtWhenItResumes) {
   EXPECT_EQ(at, 13000);
   EXPECT_EQ(s.lost_count_events[2], 0) << "the counter itself lost nothing";
   // While stuck the angle was wrong but not yet knowable; afterwards valid means right.
-  EXPECT_GT(check_valid_means_right(
+  EXPECT_GT(valid_means_right(
                 r, [](std::int64_t, int) { return 0.0; }, 12000, 13000),
             10000);
 }
