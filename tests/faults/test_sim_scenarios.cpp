@@ -23,23 +23,13 @@ using exodaq::test::sim_config;
 using exodaq::test::valid_means_right;
 
 namespace {
-// The service states in order, consecutive repeats removed.
-std::vector<int> states(const ScenarioResult& r) {
-  std::vector<int> out;
-  for (const auto& s : r.statuses) {
-    if (out.empty() || out.back() != s.state) out.push_back(s.state);
-  }
-  return out;
-}
-
 std::int64_t count_flag(const ScenarioResult& r, int j, std::int32_t flag) {
   return std::count_if(r.cycles.begin(), r.cycles.end(),
                        [&](const Cycle& c) { return (c.joint.flags[j] & flag) != 0; });
 }
 
 std::int64_t count_sample_flag(const ScenarioResult& r, std::int32_t flag) {
-  return std::count_if(r.cycles.begin(), r.cycles.end(),
-                       [&](const Cycle& c) { return (c.joint.sample_flags & flag) != 0; });
+  return static_cast<std::int64_t>(exodaq::test::seqs_with(r, flag).size());
 }
 
 const int kRunning = status_t::STATE_RUNNING;
@@ -78,7 +68,7 @@ TEST(SimScenario, HomingJointByJointThenRunning) {
   EXPECT_LT(previous, static_cast<std::int64_t>(kHomedBy * 1000));
   const auto& s = r.last_status();
   for (int j = 0; j < 6; ++j) EXPECT_EQ(int{s.homing[j]}, int{status_t::HOMING_HOMED});
-  EXPECT_EQ(states(r), (std::vector<int>{kHoming, kRunning}));
+  EXPECT_EQ(exodaq::test::state_sequence(r), (std::vector<int>{kHoming, kRunning}));
   // The first valid palm pose is the cycle where the last joint homed.
   EXPECT_EQ(r.first([](const Cycle& c) { return c.palm.valid; }), previous);
   EXPECT_GT(valid_means_right(r), 2000);
@@ -144,7 +134,7 @@ TEST(SimScenario, CounterGlitchIsFlaggedUntilTheNextIndexThenReHomed) {
   EXPECT_EQ(count_flag(r, 0, joint_state_t::JOINT_LOST_COUNTS), 100);
   // After the correction the angles are right again (valid poses are checked).
   EXPECT_GT(valid_means_right(r), 10000);
-  const auto st = states(r);
+  const auto st = exodaq::test::state_sequence(r);
   EXPECT_EQ(st.front(), kHoming);
   EXPECT_NE(std::find(st.begin(), st.end(), kDegraded), st.end());
   EXPECT_EQ(st.back(), kRunning);
@@ -199,7 +189,8 @@ TEST(SimScenario, FiftyMillisecondsOfSilenceIsMissingStaleThenRecovers) {
   EXPECT_TRUE(r.cycles[12050].palm.valid);
   EXPECT_EQ(s.seq_gaps, 1);
   EXPECT_GT(valid_means_right(r), 4000);
-  EXPECT_EQ(states(r), (std::vector<int>{kHoming, kRunning, kDegraded, kRunning}));
+  EXPECT_EQ(exodaq::test::state_sequence(r),
+            (std::vector<int>{kHoming, kRunning, kDegraded, kRunning}));
 }
 
 TEST(SimScenario, TwoSecondsOfSilenceIsAFaultThenRecoversWithoutReHoming) {
@@ -208,7 +199,7 @@ TEST(SimScenario, TwoSecondsOfSilenceIsAFaultThenRecoversWithoutReHoming) {
   const auto r = run_scenario(cfg, 18.0);
   const auto& s = r.last_status();
   EXPECT_EQ(s.missing_samples, 2000);
-  EXPECT_EQ(states(r),
+  EXPECT_EQ(exodaq::test::state_sequence(r),
             (std::vector<int>{kHoming, kRunning, kDegraded, kFault, kDegraded, kRunning}));
   // The counters survive the silence: still homed, and right (unwrap is safe
   // for 2 s at these speeds).
