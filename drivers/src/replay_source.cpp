@@ -231,7 +231,7 @@ void ReplaySource::load_lcm() {
   const bool have_joint_channel =
       ends_with(raw_channel, kRawBase) && channels.count(joint_channel) != 0;
 
-  // Pass 2: decode. Messages of one cycle are published joint, palm, raw, so
+  // Pass 2: decode. Messages of one cycle are published palm, joint, raw, so
   // the joint_state of a raw message's seq has just been seen; a small ring
   // by seq covers reordering by the recorder.
   constexpr std::size_t kRing = 256;

@@ -1,7 +1,7 @@
 #pragma once
 // Publishing without touching the loop: the loop thread encodes each message
 // into a pre-allocated slot of a single-producer/single-consumer ring and
-// posts a semaphore; the publisher thread hands the bytes to the sink (LCM,
+// posts a semaphore once per cycle; the publisher thread hands the bytes to the sink (LCM,
 // a log file, or a test's memory). The loop never blocks on the network.
 #include <semaphore.h>
 
