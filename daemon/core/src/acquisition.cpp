@@ -138,8 +138,9 @@ void Acquisition::wait_until_finished() {
 void Acquisition::stage_reload(std::unique_ptr<PipelineConfig> config, const ClockPolicy& clock) {
   // Free what the loop retired after the previous reload.
   delete retired_config_.exchange(nullptr);
-  staged_clock_policy_ = clock;
-  clock_policy_staged_.store(true, std::memory_order_release);
+  // The clock policy travels with the configuration, so the loop takes both
+  // through the one pointer exchange (nothing else is shared).
+  config->clock = clock;
   if (clock_monitor_) clock_monitor_->set_policy(clock);
   delete staged_config_.exchange(config.release(), std::memory_order_acq_rel);
 }
@@ -266,6 +267,10 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   // Reload at the cycle boundary: swap pointers only.
   if (PipelineConfig* staged = staged_config_.exchange(nullptr, std::memory_order_acq_rel)) {
     pipeline_.use(*staged);
+    if (staged->clock) {
+      config_.clock = *staged->clock;
+      time_mapper_.set_policy(config_.clock);
+    }
     PipelineConfig* old = active_config_.release();
     active_config_.reset(staged);
     // The main thread frees it; if it has not collected the last one yet, keep
@@ -278,10 +283,6 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
     e.kind = LogEvent::Kind::kReloadApplied;
     e.seq = seq_;
     push_event(e);
-  }
-  if (clock_policy_staged_.exchange(false, std::memory_order_acq_rel)) {
-    config_.clock = staged_clock_policy_;
-    time_mapper_.set_policy(config_.clock);
   }
 
   drivers::CycleTime t;

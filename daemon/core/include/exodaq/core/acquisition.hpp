@@ -147,8 +147,6 @@ class Acquisition {
   std::unique_ptr<PipelineConfig> active_config_;
   std::atomic<PipelineConfig*> staged_config_{nullptr};
   std::atomic<PipelineConfig*> retired_config_{nullptr};
-  std::atomic<bool> clock_policy_staged_{false};
-  ClockPolicy staged_clock_policy_;
   std::unique_ptr<drivers::EncoderSource> source_;
   std::unique_ptr<ClockSource> clock_;
   ClockShared clock_shared_;

@@ -4,7 +4,9 @@
 // allocation after construction; runs on the loop thread.
 #include <array>
 #include <cstdint>
+#include <optional>
 
+#include "exodaq/core/clock.hpp"
 #include "exodaq/core/joint_tracker.hpp"
 #include "exodaq/drivers/encoder_sample.hpp"
 #include "exodaq/kinematics/chain.hpp"
@@ -27,6 +29,9 @@ struct PipelineConfig {
   std::array<JointTrackerConfig, kJointCount> joints;
   kin::Chain chain;  // with the calibration's DH deviations and palm offset applied
   kin::RigKinematicsConfig rig;
+  // Set by a reload (Acquisition::stage_reload): the loop's new clock policy,
+  // handed over with the rest of the configuration.
+  std::optional<ClockPolicy> clock;
 };
 
 // Everything one cycle publishes.
