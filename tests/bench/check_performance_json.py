@@ -1,11 +1,24 @@
 #!/usr/bin/python3
-"""Checks that bench/run's performance.json has every expected figure, each a
-finite number (the values themselves are not judged: no timing asserts)."""
+"""Checks that bench/run's performance.json is complete: every part with every
+expected figure, each a finite number, and a verdict for every target of
+bench/exodaq_bench/targets.py (the values themselves are not judged: no timing
+asserts; whether a target is met is the report's business, not CI's)."""
 import json
 import math
+import os
 import sys
 
+sys.dont_write_bytecode = True
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "bench"))
+from exodaq_bench import targets  # noqa: E402
+from exodaq_bench.parts import PARTS  # noqa: E402
+
 NUM = (int, float)
+SCHEMA = 2
+# The targets of the performance issue: a row may be added in targets.py without
+# touching this list, but none of these may disappear.
+REQUIRED_TARGETS = ("cycle_hot_p99", "in_loop_work_p99", "allocations", "palm_fk", "fk_jac_manip",
+                    "lateness_p99", "e2e_added_p50", "cpu", "rss", "replay_speed", "replay_rss")
 
 
 def fail(msg):
@@ -38,8 +51,40 @@ def text(d, path):
         fail(f"{path} is not a non-empty string: {v!r}")
 
 
+def check_verdicts(d):
+    """A verdict per targets.py row and block, judged (met true/false on a finite figure),
+    or left open with a reason only where the row is pending or its part unavailable."""
+    declared = get(d, "targets")
+    for rid in REQUIRED_TARGETS:
+        if rid not in targets.BY_ID or rid not in declared:
+            fail(f"target {rid} is not declared")
+    verdicts = {(v["id"], v["policy"]): v for v in get(d, "verdicts")}
+    n = 0
+    for row in targets.ROWS:
+        found = targets.blocks(d, row)
+        if not found:
+            fail(f"no block of part {row.part} for target {row.id}")
+        for policy, block in found:
+            v = verdicts.get((row.id, policy))
+            if v is None:
+                fail(f"no verdict for {row.id} ({policy})")
+            if v["met"] is None:
+                if not (row.pending or block.get("available") is False) or not v.get("note"):
+                    fail(f"verdict {row.id} ({policy}) is open: {v.get('note')!r}")
+                continue
+            if not isinstance(v["met"], bool):
+                fail(f"verdict {row.id} ({policy}): met is {v['met']!r}")
+            number({"figure": v["figure"]}, "figure")
+            n += 1
+    return n
+
+
 def main():
     d = json.load(open(sys.argv[1]))
+    if get(d, "schema") != SCHEMA:
+        fail(f"schema {d['schema']}, expected {SCHEMA}")
+    for part in PARTS:
+        get(d, part)
     for k in ("machine.cpu_model", "machine.kernel", "machine.commit", "machine.date"):
         text(d, k)
     number(d, "machine.nproc")
@@ -83,7 +128,8 @@ def main():
         fail("replay.available is not a boolean")
     if get(d, "replay.available"):
         number(d, "replay.speed_x")
-    print(f"check_performance_json: {sys.argv[1]} complete ({', '.join(pols)})")
+    judged = check_verdicts(d)
+    print(f"check_performance_json: {sys.argv[1]} complete ({', '.join(pols)}; {judged} verdicts)")
 
 
 if __name__ == "__main__":
