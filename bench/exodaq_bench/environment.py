@@ -19,6 +19,13 @@ def cpuinfo(key):
     return None
 
 
+def cpu_mhz():
+    try:
+        return float(cpuinfo("cpu MHz"))
+    except (TypeError, ValueError):
+        return None
+
+
 def first_line(cmd):
     text = out_of(cmd)
     return text.splitlines()[0] if text else None
@@ -39,12 +46,11 @@ def lcm_version():
 
 def machine(from_commit):
     """from_commit: the commit measured from a clean export, or None for the working tree."""
-    mhz = cpuinfo("cpu MHz")
     dirty = from_commit is None and out_of(["git", "status", "--porcelain", "--untracked-files=no"]) != ""
     return {
         "nproc": os.cpu_count(),
         "cpu_model": cpuinfo("model name") or "?",
-        "cpu_mhz": float(mhz) if mhz else None,
+        "cpu_mhz": cpu_mhz(),
         "kernel": platform.release(),
         "commit": out_of(["git", "rev-parse", "--short", from_commit or "HEAD"]),
         "measured": f"git archive {from_commit} (clean export)" if from_commit else "working tree",

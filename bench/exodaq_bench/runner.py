@@ -19,7 +19,8 @@ SCHEMA = 2  # 2: "targets" as data per summary row, "verdicts"; machine.lcm
 
 
 def parse_args(argv):
-    ap = argparse.ArgumentParser(prog="bench/run", description="exodaq benchmark suite (see bench/run's docstring)")
+    ap = argparse.ArgumentParser(prog="bench/run", description=sys.modules["__main__"].__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="a few seconds per part: checks the plumbing")
     ap.add_argument("--out", default=os.path.join(REPO, "docs"), help="where performance.md/.json/.png go")
     ap.add_argument("--build-dir", default=None, help="build tree (default build-bench/)")

@@ -104,7 +104,7 @@ ROWS = [
         Ratio("resources.cpu_percent", "reference_resources.cpu_percent"),
         Target("<=", 1.5, "×", of="the bare publisher"), policies="each",
         exodaq="{resources.cpu_percent:.2f} % of one core",
-        reference="bare publisher {reference_resources.cpu_percent:.2f} %", compared="{figure:.1f}×"),
+        reference="bare publisher {reference_resources.cpu_percent:.2f} %", compared="{figure:.2f}×"),
     Row("rss", "e2e", "RSS at 1 kHz, {policy}", "resources.rss_mib", Target("<=", 16, " MiB"),
         policies="each", exodaq="{resources.rss_mib:.1f} MiB",
         reference="bare publisher {reference_resources.rss_mib:.1f} MiB"),
