@@ -14,7 +14,7 @@
 #include <cstdlib>
 #include <iostream>
 
-#include "exodaq/core/daemon_runtime.hpp"
+#include "exodaq/daemon/daemon_runtime.hpp"
 #include "exodaq/version.hpp"
 
 static int run_main(int argc, char** argv) {
@@ -45,14 +45,14 @@ static int run_main(int argc, char** argv) {
     std::fprintf(stderr, "exodaqd: --config FILE is required\n");
     return 2;
   }
-  exodaq::core::DaemonOptions options;
+  exodaq::daemon::DaemonOptions options;
   options.config_path = config_path;
   options.log_level = log_level;
   options.check_only = check_only;
   options.print_config = print_config;
   options.duration_s = duration_s;
   options.lateness_log = lateness_log;
-  return exodaq::core::run_daemon(options);
+  return exodaq::daemon::run_daemon(options);
 }
 
 // Nothing escapes main: an unexpected exception is reported and exits 1.

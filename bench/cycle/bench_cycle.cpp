@@ -29,8 +29,9 @@
 #include <vector>
 
 #include "alloc_counter.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/core/builder.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 
 using namespace exodaq;
@@ -55,13 +56,13 @@ class CountingSink final : public core::MessageSink {
   }
 };
 
-core::ServiceConfig sim_config() {
-  return core::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+config::ServiceConfig sim_config() {
+  return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
 // The daemon's wiring (daemon_runtime.cpp) with a counting sink instead of LCM.
 struct Rig {
-  core::ServiceConfig cfg = sim_config();
+  config::ServiceConfig cfg = sim_config();
   CountingSink* sink = nullptr;
   std::unique_ptr<core::Acquisition> acq;
   std::int64_t period_ns = 0;
@@ -84,7 +85,7 @@ struct Rig {
     sink = s.get();
     acq = std::make_unique<core::Acquisition>(
         ac, core::make_pipeline_config(cfg),
-        drivers::make_source(cfg.source, core::make_source_context(cfg)), std::move(s), "BENCH_",
+        drivers::make_source(cfg.source, config::make_source_context(cfg)), std::move(s), "BENCH_",
         nullptr);
     acq->prepare_for_manual_cycles();
     t0 = mono_now();
@@ -139,7 +140,7 @@ BENCHMARK(BM_Cycle);
 // part of BM_Cycle that a real rig replaces with reading SocketCAN.
 void BM_SimSourceRead(benchmark::State& state) {
   const auto cfg = sim_config();
-  auto src = drivers::make_source(cfg.source, core::make_source_context(cfg));
+  auto src = drivers::make_source(cfg.source, config::make_source_context(cfg));
   src->start();
   drivers::EncoderSample sample;
   drivers::CycleTime t;
@@ -254,7 +255,7 @@ int harness(std::int64_t cycles, std::int64_t paced_cycles, const std::string& j
   std::vector<std::int64_t> source_read;
   source_read.reserve(static_cast<std::size_t>(cycles));
   {
-    auto src = drivers::make_source(rig.cfg.source, core::make_source_context(rig.cfg));
+    auto src = drivers::make_source(rig.cfg.source, config::make_source_context(rig.cfg));
     src->start();
     drivers::EncoderSample sample;
     drivers::CycleTime t;

@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_options.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/encoder_raw_t.hpp"
@@ -23,8 +23,8 @@ int main(int argc, char** argv) {
   app.add_option("--cycles", cycles, "cycles (1 kHz: 600000 = 10 min)");
   CLI11_PARSE(app, argc, argv);
 
-  const exodaq::core::ServiceConfig cfg = exodaq::core::load_service_config(config);
-  const auto ctx = exodaq::core::make_source_context(cfg);
+  const exodaq::config::ServiceConfig cfg = exodaq::config::load_service_config(config);
+  const auto ctx = exodaq::config::make_source_context(cfg);
   exodaq::drivers::sim::SimOptions opt = exodaq::drivers::sim_options_from(cfg.source, ctx);
   opt.start_mono_ns = 1'000'000'000;
   opt.wall_offset_ns = 1'700'000'000'000'000'000LL;

@@ -26,7 +26,7 @@
 
 #include "exodaq/config/calibration_file.hpp"
 #include "exodaq/config/model_file.hpp"
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/replay_source.hpp"
 #include "process.hpp"
 
@@ -91,7 +91,7 @@ std::vector<std::string> library_messages(const Case& c) {
     } else if (c.kind == "calibrations") {
       (void)exodaq::config::load_calibration_file(c.file);
     } else if (c.kind == "configs") {
-      (void)exodaq::core::load_service_config(c.file);
+      (void)exodaq::config::load_service_config(c.file);
     } else {
       exodaq::drivers::ReplaySettings settings;
       settings.path = c.file;

@@ -11,8 +11,9 @@
 #include <vector>
 
 #include "alloc_counter.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/core/builder.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
 #include "exodaq/status_t.hpp"
@@ -75,8 +76,8 @@ class MemorySink final : public core::MessageSink {
   }
 };
 
-core::ServiceConfig sim_config() {
-  return core::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+config::ServiceConfig sim_config() {
+  return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
 std::unique_ptr<core::Acquisition> make_acquisition(std::unique_ptr<drivers::EncoderSource> src,

@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "exodaq/core/builder.hpp"
+
 namespace exodaq::test {
 
 namespace {
@@ -46,16 +48,16 @@ class KeepingSink final : public core::MessageSink {
 };
 }  // namespace
 
-core::ServiceConfig sim_config() {
-  return core::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+config::ServiceConfig sim_config() {
+  return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
-ScenarioResult run_scenario(const core::ServiceConfig& config, double seconds,
-                            const core::ServiceConfig* rig) {
+ScenarioResult run_scenario(const config::ServiceConfig& config, double seconds,
+                            const config::ServiceConfig* rig) {
   ScenarioResult r;
   r.config = config;
-  const core::ServiceConfig& rig_side = rig != nullptr ? *rig : config;
-  auto source = drivers::make_source(rig_side.source, core::make_source_context(rig_side));
+  const config::ServiceConfig& rig_side = rig != nullptr ? *rig : config;
+  auto source = drivers::make_source(rig_side.source, config::make_source_context(rig_side));
   r.sim = dynamic_cast<const drivers::SimSource*>(source.get());
   if (r.sim == nullptr) throw std::runtime_error("scenario needs the sim backend");
   core::AcquisitionConfig ac = core::make_acquisition_config(config);

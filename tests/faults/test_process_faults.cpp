@@ -15,7 +15,7 @@
 #include <thread>
 #include <vector>
 
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/joint_state_t.hpp"
@@ -138,8 +138,8 @@ TEST(ProcessFault, CpuStressOnBothCoresLosesNothingUncountedAndValidStaysRight) 
   EXPECT_LE(last.seq_gaps, last.overruns);
 
   // Valid means right: every sample of a valid palm pose within one count.
-  const auto cfg = core::load_service_config(config);
-  auto source = drivers::make_source(cfg.source, core::make_source_context(cfg));
+  const auto cfg = config::load_service_config(config);
+  auto source = drivers::make_source(cfg.source, config::make_source_context(cfg));
   const auto* sim = dynamic_cast<const drivers::SimSource*>(source.get());
   ASSERT_NE(sim, nullptr);
   const double one_count = 2.0 * M_PI / 10000.0;  // gear ratio 1 on every joint of sim.yaml

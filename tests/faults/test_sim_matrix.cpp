@@ -212,7 +212,7 @@ TEST(SimMatrix, TheNewFaultKindsAreAvailableFromTheServiceConfig) {
                             "      - {kind: wrong_dlc, at_s: 14, for_s: 0.001}\n");
   const std::string path = "/tmp/exodaq-matrix-faults-" + std::to_string(getpid()) + ".yaml";
   std::ofstream(path) << yaml;
-  const auto cfg = exodaq::core::load_service_config(path);
+  const auto cfg = exodaq::config::load_service_config(path);
   std::remove(path.c_str());
   ASSERT_EQ(cfg.source.sim.faults.size(), 3u);
   EXPECT_EQ(cfg.source.sim.faults[0].kind, SimFault::Kind::kReorder);

@@ -7,7 +7,8 @@
 // accepts yields a pipeline configuration, a source context and a dump.
 #include <string>
 
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
+#include "exodaq/core/builder.hpp"
 #include "fuzz_input.hpp"
 
 namespace config = exodaq::config;
@@ -21,16 +22,16 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (text.find(device) != std::string::npos) return 0;
   }
   static const std::string name = std::string(EXODAQ_SOURCE_DIR) + "/config/fuzz.yaml";
-  core::ServiceConfig c;
+  config::ServiceConfig c;
   try {
-    c = core::load_service_config_text(text, name);
+    c = config::load_service_config_text(text, name);
   } catch (const config::ConfigError& e) {
     FUZZ_CHECK(e.line() >= 0);
     return 0;
   }
   FUZZ_CHECK(c.model.chain.joint_count() == 6);
   FUZZ_CHECK(core::make_pipeline_config(c) != nullptr);
-  (void)core::make_source_context(c);
-  FUZZ_CHECK(!core::to_yaml(c).empty());
+  (void)config::make_source_context(c);
+  FUZZ_CHECK(!config::to_yaml(c).empty());
   return 0;
 }

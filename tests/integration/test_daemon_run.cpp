@@ -13,7 +13,8 @@
 #include <set>
 #include <thread>
 
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
+#include "exodaq/core/builder.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/encoder_raw_t.hpp"
@@ -162,9 +163,9 @@ TEST(DaemonRun, SequenceRateAndTimestampsHold) {
 
 TEST(DaemonRun, AnglesMatchTheSimulatorTruthAndPalmMatchesForwardKinematics) {
   const DaemonRecording& r = the_run();
-  const auto cfg = core::load_service_config(r.config);
+  const auto cfg = config::load_service_config(r.config);
   const auto pipeline = core::make_pipeline_config(cfg);
-  auto source = drivers::make_source(cfg.source, core::make_source_context(cfg));
+  auto source = drivers::make_source(cfg.source, config::make_source_context(cfg));
   auto* sim = dynamic_cast<drivers::SimSource*>(source.get());
   ASSERT_NE(sim, nullptr);
   const double one_count = 2.0 * M_PI / 10000.0;  // gear ratio 1 on every joint of sim.yaml

@@ -9,7 +9,7 @@
 #include <map>
 #include <thread>
 
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/joint_state_t.hpp"
@@ -45,7 +45,7 @@ TEST(Reload, SighupAppliesANewCalibrationWithoutAGapAndRejectsABadOne) {
   write_atomically(cal, calibration_text(49.0, false));
   const std::string config = test::write_sim_config(dir, prefix, cal);
   // The rig as it started (its motion depends on the index angles): the truth.
-  const auto rig_config = core::load_service_config(config);
+  const auto rig_config = config::load_service_config(config);
   test::Process recorder(
       {EXODAQ_RECORDER, test::kLcmUrl, prefix + "EXO_(JOINT_STATE|STATUS)", dir + "/rec.bin"}, "",
       dir + "/rec.err");
@@ -82,7 +82,7 @@ TEST(Reload, SighupAppliesANewCalibrationWithoutAGapAndRejectsABadOne) {
 
   // The joint-1 angle relative to the simulator's truth: 0 before the
   // reload, +1 deg after, switching once, with no cycle lost around it.
-  auto source = drivers::make_source(rig_config.source, core::make_source_context(rig_config));
+  auto source = drivers::make_source(rig_config.source, config::make_source_context(rig_config));
   const auto* sim = dynamic_cast<const drivers::SimSource*>(source.get());
   ASSERT_NE(sim, nullptr);
   const double count = 2.0 * M_PI / 10000.0;

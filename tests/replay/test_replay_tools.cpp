@@ -15,7 +15,7 @@
 #include <sstream>
 #include <thread>
 
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_options.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
@@ -295,8 +295,8 @@ TEST_F(ReplayLive, PlotWritesOneNonEmptyPngPerPanel) {
 TEST(ReplayCandumpTool, SimFramesReplayToTheTruthWithinOneCount) {
   const std::string dir = make_temp_dir("replay-candump");
   const std::string config = write_sim_config(dir, unique_prefix("cd"));
-  const core::ServiceConfig cfg = core::load_service_config(config);
-  const drivers::SourceContext ctx = core::make_source_context(cfg);
+  const config::ServiceConfig cfg = config::load_service_config(config);
+  const drivers::SourceContext ctx = config::make_source_context(cfg);
   const drivers::sim::SimOptions opt = drivers::sim_options_from(cfg.source, ctx);
   const drivers::sim::SimRig truth_rig(opt);
   const double homing_end = truth_rig.motion().homing_end_s();

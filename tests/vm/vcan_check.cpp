@@ -42,7 +42,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/can_codec.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
@@ -230,7 +230,7 @@ int main(int argc, char** argv) {
                  "also write every received cycle to this file (not checked here)");
   CLI11_PARSE(app, argc, argv);
 
-  const auto cfg = exodaq::core::load_service_config(config_path);
+  const auto cfg = exodaq::config::load_service_config(config_path);
   const std::string prefix = cfg.lcm.prefix;
   if (url.empty()) url = cfg.lcm.url;
   exodaq::drivers::can::ProtocolIds ids;

@@ -31,7 +31,7 @@
 #include <string>
 #include <vector>
 
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/can_codec.hpp"
 #include "exodaq/drivers/sim_options.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
@@ -437,10 +437,10 @@ static int run_main(int argc, char** argv) {
   exodaq::drivers::SourceOptions source;
   try {
     if (!config_path.empty()) {
-      const auto cfg = exodaq::core::load_service_config(config_path);
+      const auto cfg = exodaq::config::load_service_config(config_path);
       source = cfg.source;
       options =
-          exodaq::drivers::sim_options_from(cfg.source, exodaq::core::make_source_context(cfg));
+          exodaq::drivers::sim_options_from(cfg.source, exodaq::config::make_source_context(cfg));
       options.board.ids.board = static_cast<std::uint32_t>(cfg.source.socketcan.board);
     }
     if (seed >= 0) options.seed = static_cast<std::uint64_t>(seed);

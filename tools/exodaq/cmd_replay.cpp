@@ -27,9 +27,10 @@
 #include <string>
 
 #include "command.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
+#include "exodaq/core/builder.hpp"
 #include "exodaq/core/publisher.hpp"
-#include "exodaq/core/service_config.hpp"
 #include "exodaq/drivers/replay_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/status_t.hpp"
@@ -166,7 +167,7 @@ struct ReplayOptions {
 };
 
 // The daemon's own loop settings, switched to replay.
-core::AcquisitionConfig acquisition_config(const core::ServiceConfig& c, double speed,
+core::AcquisitionConfig acquisition_config(const config::ServiceConfig& c, double speed,
                                            std::int64_t run_id) {
   core::AcquisitionConfig a = core::make_acquisition_config(c);
   a.cpu = -1;
@@ -216,7 +217,7 @@ int run_replay(const ReplayOptions& o) {
     }
   }
 
-  core::ServiceConfig cfg = core::load_service_config(o.config);
+  config::ServiceConfig cfg = config::load_service_config(o.config);
   if (!o.calibration.empty()) {
     cfg.calibration = config::load_calibration_file(o.calibration);
     cfg.calibration_path = o.calibration;
@@ -229,7 +230,7 @@ int run_replay(const ReplayOptions& o) {
   src_opts.replay_speed = speed;
 
   std::unique_ptr<drivers::EncoderSource> source =
-      drivers::make_source(src_opts, core::make_source_context(cfg));
+      drivers::make_source(src_opts, config::make_source_context(cfg));
   auto* replay = dynamic_cast<drivers::ReplaySource*>(source.get());
   if (replay == nullptr) throw std::logic_error("the replay backend is not a ReplaySource");
   const std::int64_t load_start = mono_now();

@@ -7,6 +7,8 @@
 #include <array>
 #include <cstdint>
 
+#include "exodaq/config/service_config.hpp"
+
 namespace exodaq::core {
 
 // Same bit values as joint_state_t JOINT_*.
@@ -45,7 +47,7 @@ struct JointTrackerConfig {
   int velocity_window = 21;  // samples in the velocity fit (odd, <= kMaxVelocityWindow)
 };
 
-inline constexpr int kMaxVelocityWindow = 64;
+using config::kMaxVelocityWindow;
 
 struct JointCounters {
   std::int64_t glitches = 0;

@@ -10,12 +10,30 @@
 
 #include "exodaq/config/calibration_file.hpp"
 #include "exodaq/config/model_file.hpp"
-#include "exodaq/core/acquisition.hpp"
-#include "exodaq/core/clock.hpp"
-#include "exodaq/core/pipeline.hpp"
 #include "exodaq/drivers/source_options.hpp"
 
-namespace exodaq::core {
+namespace exodaq::config {
+
+// The service publishes exactly six joints (the arrays of joint_state_t).
+inline constexpr int kJointCount = 6;
+// The longest velocity fit a joint tracker holds (encoders.velocity_window).
+inline constexpr int kMaxVelocityWindow = 64;
+
+enum class RequireSync : std::uint8_t {
+  kIgnore,  // clock health reported only
+  kMark,    // samples carry SAMPLE_CLOCK_UNSYNC while unsynchronised
+  kHold,    // as kMark, and the service stays degraded (palm invalid) until synchronised
+};
+
+// How sample time treats the wall clock (docs/time.md).
+struct ClockPolicy {
+  RequireSync require_sync = RequireSync::kMark;
+  double max_est_error_us = 5'000.0;           // synchronised needs esterror at most this
+  double max_max_error_us = 100'000.0;         // ... and maxerror at most this
+  std::int64_t step_threshold_ns = 2'000'000;  // an offset change larger than this is a step
+  double slew_ppm = 1'000.0;                   // ordinary tracking rate (NTP slews at most 500 ppm)
+  double step_slew_ppm = 100'000.0;            // how fast a step is absorbed: 10 % (1 s in 10 s)
+};
 
 struct LoopSettings {
   double rate_hz = 1000.0;
@@ -67,8 +85,8 @@ struct ServiceConfig {
   EncoderSettings encoders;
   std::string model_path;
   std::string calibration_path;
-  config::KinematicModel model;
-  config::Calibration calibration;
+  KinematicModel model;
+  Calibration calibration;
   double singularity_threshold = 0.05;
   LcmSettings lcm;
   ClockPolicy clock;
@@ -78,19 +96,14 @@ struct ServiceConfig {
 ServiceConfig load_service_config(const std::string& path);
 ServiceConfig load_service_config_text(const std::string& text, const std::string& name);
 
-// The pipeline's configuration from a loaded service config: trackers from
-// encoders + model limits + calibration offsets, chain with the calibration.
-std::unique_ptr<PipelineConfig> make_pipeline_config(const ServiceConfig& config);
-
 // What the source backends need to know about the rig (encoders, model,
 // calibration): the sim puts each index at the calibration's delta_theta0.
 drivers::SourceContext make_source_context(const ServiceConfig& config);
 
-// The loop's settings from a loaded service config (rate, scheduling, status
-// rate, joint names, clock policy, replay pacing).
-AcquisitionConfig make_acquisition_config(const ServiceConfig& config);
+// The loop period of a configuration, ns.
+std::int64_t period_ns(const ServiceConfig& config);
 
 // A readable dump (YAML) of the effective configuration (--print-config).
 std::string to_yaml(const ServiceConfig& config);
 
-}  // namespace exodaq::core
+}  // namespace exodaq::config

@@ -1,4 +1,4 @@
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/config/service_config.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -8,11 +8,7 @@
 
 #include "exodaq/config/yaml_reader.hpp"
 
-namespace exodaq::core {
-
-using config::ConfigError;
-using config::kDegToRad;
-using config::MapReader;
+namespace exodaq::config {
 
 namespace {
 
@@ -279,9 +275,9 @@ ServiceConfig parse(const YAML::Node& root, const std::string& file) {
   top.finish();
 
   // The referenced files, each with its own file:line errors.
-  c.model = config::load_model_file(c.model_path);
+  c.model = load_model_file(c.model_path);
   if (c.model.chain.joint_count() != kJointCount) {
-    throw ConfigError(file, config::line_of(root["model"]),
+    throw ConfigError(file, line_of(root["model"]),
                       "model '" + c.model_path + "' has " +
                           std::to_string(c.model.chain.joint_count()) +
                           " joints; the service publishes exactly 6");
@@ -292,49 +288,23 @@ ServiceConfig parse(const YAML::Node& root, const std::string& file) {
                         "joint name '" + j.name + "' is longer than 31 characters");
     }
   }
-  c.calibration = config::load_calibration_file(c.calibration_path);
+  c.calibration = load_calibration_file(c.calibration_path);
   c.model.rig.singularity_threshold = c.singularity_threshold;
   return c;
 }
 }  // namespace
 
 ServiceConfig load_service_config(const std::string& path) {
-  return parse(config::load_yaml_file(path), path);
+  return parse(load_yaml_file(path), path);
 }
 
 ServiceConfig load_service_config_text(const std::string& text, const std::string& name) {
-  return parse(config::load_yaml_text(text, name), name);
-}
-
-std::unique_ptr<PipelineConfig> make_pipeline_config(const ServiceConfig& c) {
-  auto p = std::make_unique<PipelineConfig>();
-  p->chain = config::apply_calibration(c.model.chain, c.calibration);
-  p->rig = c.model.rig;
-  const auto& joints = c.model.chain.joints();
-  for (int i = 0; i < kJointCount; ++i) {
-    const auto& e = c.encoders.joints[static_cast<std::size_t>(i)];
-    JointTrackerConfig& t = p->joints[static_cast<std::size_t>(i)];
-    t.channel = e.channel;
-    t.direction = e.direction;
-    t.counts_per_rev = c.encoders.counts_per_rev();
-    t.gear_ratio = e.gear_ratio;
-    t.offset_rad = c.calibration.encoder_offset_rad[static_cast<std::size_t>(i)];
-    t.home_rad = c.model.home_posture.size() > i ? c.model.home_posture[i] : 0.0;
-    t.lower_rad = joints[static_cast<std::size_t>(i)].limits.lower;
-    t.upper_rad = joints[static_cast<std::size_t>(i)].limits.upper;
-    t.limit_margin_rad = c.encoders.limit_margin_deg * kDegToRad;
-    t.max_speed_rad_s = e.max_speed_rad_s * c.encoders.speed_margin;
-    t.index_tolerance_counts = c.encoders.index_tolerance_counts;
-    t.stale_ns = static_cast<std::int64_t>(c.encoders.stale_ms * 1e6);
-    t.fault_hold_ns = static_cast<std::int64_t>(c.encoders.fault_hold_ms * 1e6);
-    t.velocity_window = c.encoders.velocity_window;
-  }
-  return p;
+  return parse(load_yaml_text(text, name), name);
 }
 
 drivers::SourceContext make_source_context(const ServiceConfig& config) {
   drivers::SourceContext ctx;
-  ctx.period_ns = static_cast<std::int64_t>(1e9 / config.loop.rate_hz);
+  ctx.period_ns = period_ns(config);
   ctx.counts_per_rev = config.encoders.counts_per_rev();
   for (int i = 0; i < kJointCount; ++i) {
     const auto idx = static_cast<std::size_t>(i);
@@ -352,25 +322,8 @@ drivers::SourceContext make_source_context(const ServiceConfig& config) {
   return ctx;
 }
 
-AcquisitionConfig make_acquisition_config(const ServiceConfig& c) {
-  AcquisitionConfig a;
-  a.rig = c.rig;
-  a.period_ns = static_cast<std::int64_t>(1e9 / c.loop.rate_hz);
-  a.cpu = c.loop.cpu;
-  a.priority = c.loop.priority;
-  a.lock_memory = c.loop.lock_memory;
-  a.fault_after_ms = c.loop.fault_after_ms;
-  a.status_every_cycles =
-      std::max(1, static_cast<int>(std::lround(c.loop.rate_hz / c.loop.status_rate_hz)));
-  a.publish_raw = c.lcm.publish_raw;
-  a.clock = c.clock;
-  const auto& joints = c.model.chain.joints();
-  for (int i = 0; i < kJointCount; ++i) {
-    a.joint_names[static_cast<std::size_t>(i)] = joints[static_cast<std::size_t>(i)].name;
-  }
-  a.replay = c.source.backend == drivers::SourceBackend::kReplay;
-  a.replay_speed = c.source.replay_speed;
-  return a;
+std::int64_t period_ns(const ServiceConfig& config) {
+  return static_cast<std::int64_t>(1e9 / config.loop.rate_hz);
 }
 
 std::string to_yaml(const ServiceConfig& c) {
@@ -417,4 +370,4 @@ std::string to_yaml(const ServiceConfig& c) {
   return o.str();
 }
 
-}  // namespace exodaq::core
+}  // namespace exodaq::config

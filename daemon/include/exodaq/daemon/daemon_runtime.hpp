@@ -4,7 +4,7 @@
 // acquisition. main() only parses the command line.
 #include <string>
 
-namespace exodaq::core {
+namespace exodaq::daemon {
 
 struct DaemonOptions {
   std::string config_path;
@@ -18,4 +18,4 @@ struct DaemonOptions {
 // Returns the process exit code: 0 clean stop, 1 configuration or start-up error.
 int run_daemon(const DaemonOptions& options);
 
-}  // namespace exodaq::core
+}  // namespace exodaq::daemon

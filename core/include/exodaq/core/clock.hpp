@@ -11,6 +11,8 @@
 #include <mutex>
 #include <thread>
 
+#include "exodaq/config/service_config.hpp"
+
 namespace exodaq::core {
 
 struct ClockHealth {
@@ -36,20 +38,9 @@ class ClockSource {
 // The real clocks: clock_gettime and read-only ntp_adjtime.
 std::unique_ptr<ClockSource> make_system_clock();
 
-enum class RequireSync : std::uint8_t {
-  kIgnore,  // clock health reported only
-  kMark,    // samples carry SAMPLE_CLOCK_UNSYNC while unsynchronised
-  kHold,    // as kMark, and the service stays degraded (palm invalid) until synchronised
-};
-
-struct ClockPolicy {
-  RequireSync require_sync = RequireSync::kMark;
-  double max_est_error_us = 5'000.0;           // synchronised needs esterror at most this
-  double max_max_error_us = 100'000.0;         // ... and maxerror at most this
-  std::int64_t step_threshold_ns = 2'000'000;  // an offset change larger than this is a step
-  double slew_ppm = 1'000.0;                   // ordinary tracking rate (NTP slews at most 500 ppm)
-  double step_slew_ppm = 100'000.0;            // how fast a step is absorbed: 10 % (1 s in 10 s)
-};
+// The policy is part of the service configuration (settings library).
+using config::ClockPolicy;
+using config::RequireSync;
 
 // Latest offset (wall - mono) and health, written by ClockMonitor's thread,
 // read by the loop with relaxed atomics (no lock, no syscall).

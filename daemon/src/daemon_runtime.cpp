@@ -1,4 +1,4 @@
-#include "exodaq/core/daemon_runtime.hpp"
+#include "exodaq/daemon/daemon_runtime.hpp"
 
 #include <signal.h>
 #include <spdlog/async.h>
@@ -22,13 +22,21 @@
 #include <string_view>
 #include <vector>
 
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/core/acquisition.hpp"
-#include "exodaq/core/service_config.hpp"
+#include "exodaq/core/builder.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/version.hpp"
 
-namespace exodaq::core {
+namespace exodaq::daemon {
+
+using namespace core;  // NOLINT(google-build-using-namespace): the daemon wires the core
+using config::load_service_config;
+using config::LoggingSettings;
+using config::make_source_context;
+using config::ServiceConfig;
+using config::to_yaml;
 
 namespace {
 
@@ -535,4 +543,4 @@ int run_daemon(const DaemonOptions& options) {
   return exit_code;
 }
 
-}  // namespace exodaq::core
+}  // namespace exodaq::daemon

@@ -14,7 +14,7 @@
 
 namespace exodaq::core {
 
-inline constexpr int kJointCount = 6;
+using config::kJointCount;
 
 // Same bit values as palm_pose_t INVALID_*.
 namespace invalid_reason {
