@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "alloc_counter.hpp"
+#include "exodaq/common/clock_now.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
@@ -38,16 +39,10 @@ using namespace exodaq;
 
 namespace {
 
-std::int64_t mono_now() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 // Counts what the publisher hands over; allocates nothing.
 class CountingSink final : public core::MessageSink {
  public:
-  std::array<std::int64_t, core::kChannelIdCount> counts{};
+  std::array<std::int64_t, exodaq::msg::kKindCount> counts{};
   std::int64_t bytes = 0;
   bool publish(const std::string&, const core::OutgoingMessage& msg) noexcept override {
     ++counts[static_cast<std::size_t>(msg.channel)];
@@ -88,7 +83,7 @@ struct Rig {
         drivers::make_source(cfg.source, config::make_source_context(cfg)), std::move(s), "BENCH_",
         nullptr);
     acq->prepare_for_manual_cycles();
-    t0 = mono_now();
+    t0 = mono_now_ns();
   }
 
   // One cycle, 5 us after its deadline (the deadlines are simulated time).
@@ -145,7 +140,7 @@ void BM_SimSourceRead(benchmark::State& state) {
   drivers::EncoderSample sample;
   drivers::CycleTime t;
   t.period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.rate_hz);
-  const std::int64_t t0 = mono_now();
+  const std::int64_t t0 = mono_now_ns();
   for (auto _ : state) {
     t.deadline_mono_ns = t0 + t.cycle * t.period_ns;
     t.now_mono_ns = t.deadline_mono_ns + 5'000;
@@ -207,12 +202,12 @@ std::vector<std::int64_t> paced(std::int64_t n, bool publisher_thread) {
   if (publisher_thread) rig.acq->publisher().start();
   std::vector<std::int64_t> d;
   d.reserve(static_cast<std::size_t>(n));
-  std::int64_t deadline = mono_now() + rig.period_ns;
+  std::int64_t deadline = mono_now_ns() + rig.period_ns;
   for (std::int64_t i = 0; i < n; ++i, deadline += rig.period_ns) {
     sleep_until(deadline);
-    const std::int64_t a = mono_now();
+    const std::int64_t a = mono_now_ns();
     rig.cycle();
-    d.push_back(mono_now() - a);
+    d.push_back(mono_now_ns() - a);
     if (!publisher_thread) rig.acq->publisher().drain();
   }
   if (publisher_thread) rig.acq->publisher().stop();
@@ -238,9 +233,9 @@ int harness(std::int64_t cycles, std::int64_t paced_cycles, const std::string& j
     test::AllocationScope scope;
     for (std::int64_t i = 0; i < cycles; ++i) {
       const bool is_status = (rig.k + 1) % status_every == 0;
-      const std::int64_t a = mono_now();
+      const std::int64_t a = mono_now_ns();
       rig.cycle();
-      const std::int64_t d = mono_now() - a;
+      const std::int64_t d = mono_now_ns() - a;
       all.push_back(d);
       (is_status ? status : regular).push_back(d);
       if ((i & 255) == 255) rig.acq->publisher().drain();
@@ -264,9 +259,9 @@ int harness(std::int64_t cycles, std::int64_t paced_cycles, const std::string& j
       t.cycle = i;
       t.deadline_mono_ns = rig.t0 + i * t.period_ns;
       t.now_mono_ns = t.deadline_mono_ns + 5'000;
-      const std::int64_t a = mono_now();
+      const std::int64_t a = mono_now_ns();
       src->read(t, sample);
-      const std::int64_t d = mono_now() - a;
+      const std::int64_t d = mono_now_ns() - a;
       if (i >= warmup) source_read.push_back(d);
     }
   }
@@ -274,8 +269,8 @@ int harness(std::int64_t cycles, std::int64_t paced_cycles, const std::string& j
   std::vector<std::int64_t> timer;
   timer.reserve(10'000);
   for (int i = 0; i < 10'000; ++i) {
-    const std::int64_t a = mono_now();
-    timer.push_back(mono_now() - a);
+    const std::int64_t a = mono_now_ns();
+    timer.push_back(mono_now_ns() - a);
   }
 
   const auto paced_inline = paced(paced_cycles, false);

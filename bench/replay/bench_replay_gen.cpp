@@ -2,16 +2,18 @@
 // <prefix>EXO_ENCODER_RAW as exodaqd on the simulated rig would publish
 // them, for the replay throughput benchmark:
 //   bench_replay_gen --config config/sim.yaml --cycles 600000 --out big.lcm
-#include <lcm/lcm.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <vector>
 
 #include "exodaq/config/service_config.hpp"
-#include "exodaq/drivers/sim_options.hpp"
+#include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/messages/channels.hpp"
+#include "exodaq/messages/lcm_log.hpp"
+#include "exodaq/messages/raw_sample.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"bench_replay_gen: a simulated lcm-logger log for the replay benchmark"};
@@ -31,12 +33,9 @@ int main(int argc, char** argv) {
   exodaq::drivers::SimSource sim(opt);
   sim.start();
 
-  lcm_eventlog_t* log = lcm_eventlog_create(out.c_str(), "w");
-  if (log == nullptr) {
-    std::fprintf(stderr, "cannot create %s\n", out.c_str());
-    return 1;
-  }
-  const std::string channel = cfg.lcm.prefix + "EXO_ENCODER_RAW";
+  namespace msg = exodaq::msg;
+  msg::LogWriter log(out);
+  const std::string channel = msg::channel_name(cfg.lcm.prefix, msg::Kind::kEncoderRaw);
   exodaq::encoder_raw_t raw{};
   raw.run_id = 0x5eed;
   std::vector<std::uint8_t> buf(4096);
@@ -48,32 +47,11 @@ int main(int argc, char** argv) {
     raw.utime = s.wall_ns / 1000;
     raw.mono_ns = s.mono_ns;
     raw.seq = k;
-    raw.present = s.present;
-    raw.board_seq = s.board_seq;
-    for (int c = 0; c < 6; ++c) {
-      raw.count16[c] = static_cast<std::int16_t>(s.count16[static_cast<std::size_t>(c)]);
-      raw.index_count16[c] =
-          static_cast<std::int16_t>(s.index_count16[static_cast<std::size_t>(c)]);
-    }
-    raw.index_latched = static_cast<std::int32_t>(s.index_latched);
-    raw.index_count_valid = static_cast<std::int32_t>(s.index_count_valid);
-    raw.board_state = static_cast<std::int32_t>(s.board_state);
-    raw.board_errors = static_cast<std::int32_t>(s.board_errors);
-    raw.source_flags = static_cast<std::int32_t>(s.flags);
-    raw.wall_ns = s.wall_ns;
+    msg::to_encoder_raw(s, raw);
     const int n = raw.encode(buf.data(), 0, static_cast<int>(buf.size()));
-    lcm_eventlog_event_t ev{};
-    ev.timestamp = raw.utime;
-    ev.channellen = static_cast<std::int32_t>(channel.size());
-    ev.datalen = n;
-    ev.channel = const_cast<char*>(channel.c_str());
-    ev.data = buf.data();
-    if (lcm_eventlog_write_event(log, &ev) != 0) {
-      std::fprintf(stderr, "error writing %s\n", out.c_str());
-      return 1;
-    }
+    log.write(channel, raw.utime, buf.data(), static_cast<std::size_t>(n));
   }
-  lcm_eventlog_destroy(log);
+  log.close();
   std::printf("%s: %lld cycles on %s\n", out.c_str(), static_cast<long long>(cycles),
               channel.c_str());
   return 0;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -130,6 +131,13 @@ std::string MapReader::string(const std::string& key) {
   const YAML::Node n = child(key);
   if (!n.IsScalar()) fail(n, "'" + key + "' must be a string, found " + kind_name(n));
   return n.Scalar();
+}
+
+std::string MapReader::path(const std::string& key) {
+  namespace fs = std::filesystem;
+  const fs::path p(string(key));
+  if (p.is_absolute()) return p.string();
+  return (fs::path(file_).parent_path() / p).lexically_normal().string();
 }
 
 std::string MapReader::string_or(const std::string& key, const std::string& fallback) {

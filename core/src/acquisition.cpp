@@ -14,15 +14,12 @@
 #include <stdexcept>
 #include <vector>
 
+#include "exodaq/common/clock_now.hpp"
+#include "exodaq/messages/raw_sample.hpp"
+
 namespace exodaq::core {
 
 namespace {
-std::int64_t mono_now() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 void sleep_until(std::int64_t deadline_ns) noexcept {
   timespec ts{};
   ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
@@ -56,6 +53,10 @@ Acquisition::Acquisition(AcquisitionConfig config, std::unique_ptr<PipelineConfi
       run_id_(config_.run_id != 0 ? config_.run_id : new_run_id()) {
   time_mapper_.set_policy(config_.clock);
   if (config_.status_every_cycles < 1) config_.status_every_cycles = 1;
+  if (const auto speed = source_->recording_speed()) {
+    replay_ = true;
+    replay_speed_ = *speed;
+  }
 
   // Every string the loop will ever encode is set here, once; the message
   // buffer is reserved so per-window text never reallocates.
@@ -119,7 +120,7 @@ void Acquisition::stop() {
   if (started_) {
     // The final status: subscribers see the service stop on purpose.
     state_.store(ServiceState::kStopping);
-    finish_window(mono_now());
+    finish_window(mono_now_ns());
     publisher_.stop();
     if (clock_monitor_) clock_monitor_->stop();
     source_->stop();
@@ -194,7 +195,7 @@ void Acquisition::setup_realtime() {
 }
 
 template <typename Msg>
-void Acquisition::encode(ChannelId channel, const Msg& msg, std::int64_t utime_us) noexcept {
+void Acquisition::encode(msg::Kind channel, const Msg& msg, std::int64_t utime_us) noexcept {
   OutgoingMessage* slot = publisher_.acquire();
   if (slot == nullptr) return;  // ring full: counted by the publisher
   const int n = msg.encode(slot->bytes.data(), 0, static_cast<int>(slot->bytes.size()));
@@ -213,37 +214,37 @@ void Acquisition::thread_main() noexcept {
   }
   pthread_setname_np(pthread_self(), "exodaq-loop");
   const std::int64_t period = config_.period_ns;
-  std::int64_t deadline = mono_now() + period;
+  std::int64_t deadline = mono_now_ns() + period;
   while (!stop_requested_.load(std::memory_order_relaxed)) {
     if (stall_.load(std::memory_order_relaxed)) {
-      sleep_until(mono_now() + 10'000'000);
-      deadline = mono_now() + period;
+      sleep_until(mono_now_ns() + 10'000'000);
+      deadline = mono_now_ns() + period;
       continue;
     }
     const std::int64_t recorded_next = source_->next_sample_mono_ns();
-    if (config_.replay && recorded_next >= 0) {
+    if (replay_ && recorded_next >= 0) {
       // Paced by the recording (or not at all at --speed max).
       if (first_recorded_mono_ns_ < 0) {
         first_recorded_mono_ns_ = recorded_next;
-        replay_start_mono_ns_ = mono_now();
+        replay_start_mono_ns_ = mono_now_ns();
       }
-      if (config_.replay_speed > 0.0) {
+      if (replay_speed_ > 0.0) {
         deadline =
             replay_start_mono_ns_ +
             static_cast<std::int64_t>(static_cast<double>(recorded_next - first_recorded_mono_ns_) /
-                                      config_.replay_speed);
+                                      replay_speed_);
         sleep_until(deadline);
       } else {
-        deadline = mono_now();
+        deadline = mono_now_ns();
       }
     } else {
       sleep_until(deadline);
     }
-    const std::int64_t wake = mono_now();
+    const std::int64_t wake = mono_now_ns();
     if (!run_cycle(deadline, wake)) break;
-    const std::int64_t end = mono_now();
+    const std::int64_t end = mono_now_ns();
     deadline += period;
-    if (!config_.replay && end > deadline) {
+    if (!replay_ && end > deadline) {
       // Overrun: count it and skip to the next deadline still ahead instead of
       // bursting through the missed ones. The skipped cycles' seq numbers are
       // not published; the status counts them.
@@ -299,7 +300,7 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
     finished_.store(true, std::memory_order_release);
     return false;
   }
-  if (config_.replay) {
+  if (replay_) {
     // The recording's cycle numbers, gaps from the live run's overruns included.
     const std::int64_t recorded = source_->recorded_seq();
     if (recorded >= 0) seq_ = recorded;
@@ -326,7 +327,7 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   std::uint32_t extra = 0;
   bool clock_invalid = false;
   std::int64_t utime_us = 0;
-  if (config_.replay) {
+  if (replay_) {
     utime_us = sample_.wall_ns / 1000;
     extra |= drivers::sample_flag::kReplay;
     // The live run's clock verdict, carried in the recorded flags.
@@ -404,7 +405,7 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
 
   ++seq_;
   cycles_.fetch_add(1, std::memory_order_release);  // publishes realtime_report_ (cycles())
-  const std::int64_t end = mono_now();
+  const std::int64_t end = mono_now_ns();
   work_window_.add(end - wake_ns);
   // The window closes on the cycle's own clock (the simulated one when tests
   // drive cycles by hand), so state decisions are reproducible.
@@ -428,7 +429,7 @@ void Acquisition::encode_cycle(const drivers::EncoderSample& sample) noexcept {
   palm_msg_.shoulder_manipulability = r.pose.shoulder_manipulability_normalised;
   palm_msg_.shoulder_manipulability_raw = r.pose.shoulder_manipulability;
   palm_msg_.near_singular = r.pose.near_singular;
-  encode(ChannelId::kPalmPose, palm_msg_, r.utime_us);
+  encode(msg::Kind::kPalmPose, palm_msg_, r.utime_us);
 
   for (int i = 0; i < kJointCount; ++i) {
     const JointReading& j = r.joints[static_cast<std::size_t>(i)];
@@ -439,23 +440,11 @@ void Acquisition::encode_cycle(const drivers::EncoderSample& sample) noexcept {
     joint_msg_.flags[i] = static_cast<std::int32_t>(j.flags);
   }
   joint_msg_.sample_flags = static_cast<std::int32_t>(r.sample_flags);
-  encode(ChannelId::kJointState, joint_msg_, r.utime_us);
+  encode(msg::Kind::kJointState, joint_msg_, r.utime_us);
 
   if (config_.publish_raw) {
-    raw_msg_.present = sample.present;
-    raw_msg_.board_seq = sample.board_seq;
-    for (int c = 0; c < drivers::kChannelCount; ++c) {
-      raw_msg_.count16[c] = static_cast<std::int16_t>(sample.count16[static_cast<std::size_t>(c)]);
-      raw_msg_.index_count16[c] =
-          static_cast<std::int16_t>(sample.index_count16[static_cast<std::size_t>(c)]);
-    }
-    raw_msg_.index_latched = static_cast<std::int32_t>(sample.index_latched);
-    raw_msg_.index_count_valid = static_cast<std::int32_t>(sample.index_count_valid);
-    raw_msg_.board_state = static_cast<std::int32_t>(sample.board_state);
-    raw_msg_.board_errors = static_cast<std::int32_t>(sample.board_errors);
-    raw_msg_.source_flags = static_cast<std::int32_t>(sample.flags);
-    raw_msg_.wall_ns = sample.wall_ns;
-    encode(ChannelId::kEncoderRaw, raw_msg_, r.utime_us);
+    msg::to_encoder_raw(sample, raw_msg_);
+    encode(msg::Kind::kEncoderRaw, raw_msg_, r.utime_us);
   }
   publisher_.notify();
 }
@@ -480,7 +469,7 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
     const std::int64_t since_sample_ms =
         last_sample_mono_ns_ == 0 ? 0 : (now_mono - last_sample_mono_ns_) / 1'000'000;
     next = next_state(previous, facts_, since_sample_ms, config_.fault_after_ms);
-    if (config_.replay && facts_.samples_present > 0 && next == ServiceState::kFault) {
+    if (replay_ && facts_.samples_present > 0 && next == ServiceState::kFault) {
       next = previous;
     }
     // Hysteresis: back to running only after a run of clean windows, so a
@@ -572,7 +561,7 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
     std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n), "; clock unsynchronised");
   }
   s.message.assign(text);
-  encode(ChannelId::kStatus, s, s.utime);
+  encode(msg::Kind::kStatus, s, s.utime);
   publisher_.notify();
 
   period_window_.clear();

@@ -47,8 +47,6 @@ AcquisitionConfig make_acquisition_config(const config::ServiceConfig& c) {
   for (int i = 0; i < kJointCount; ++i) {
     a.joint_names[static_cast<std::size_t>(i)] = joints[static_cast<std::size_t>(i)].name;
   }
-  a.replay = c.source.backend == drivers::SourceBackend::kReplay;
-  a.replay_speed = c.source.replay_speed;
   return a;
 }
 

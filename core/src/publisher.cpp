@@ -7,20 +7,6 @@
 
 namespace exodaq::core {
 
-const char* channel_base_name(ChannelId id) noexcept {
-  switch (id) {
-    case ChannelId::kJointState:
-      return "EXO_JOINT_STATE";
-    case ChannelId::kPalmPose:
-      return "EXO_PALM_POSE";
-    case ChannelId::kEncoderRaw:
-      return "EXO_ENCODER_RAW";
-    case ChannelId::kStatus:
-      return "EXO_STATUS";
-  }
-  return "EXO_UNKNOWN";
-}
-
 namespace {
 class LcmSink final : public MessageSink {
  public:
@@ -52,8 +38,8 @@ std::unique_ptr<MessageSink> make_lcm_sink(const std::string& url) {
 Publisher::Publisher(std::unique_ptr<MessageSink> sink, const std::string& prefix,
                      std::size_t capacity)
     : sink_(std::move(sink)), slots_(round_up_pow2(capacity)), mask_(slots_.size() - 1) {
-  for (int i = 0; i < kChannelIdCount; ++i) {
-    channels_[static_cast<std::size_t>(i)] = prefix + channel_base_name(static_cast<ChannelId>(i));
+  for (const msg::Kind k : msg::kAllKinds) {
+    channels_[static_cast<std::size_t>(k)] = msg::channel_name(prefix, k);
   }
   sem_init(&ready_, 0, 0);
 }

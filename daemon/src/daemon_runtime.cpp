@@ -22,6 +22,7 @@
 #include <string_view>
 #include <vector>
 
+#include "exodaq/common/clock_now.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/core/acquisition.hpp"
@@ -39,12 +40,6 @@ using config::ServiceConfig;
 using config::to_yaml;
 
 namespace {
-
-std::int64_t mono_now() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 // Structured journal fields travel with a message through the async logger:
 // the payload is "text" kFieldSep "NAME=value" kFieldSep "NAME=value"... The
@@ -395,7 +390,7 @@ int run_daemon(const DaemonOptions& options) {
     const double seconds = options.duration_s > 0 ? options.duration_s + 5.0 : 3600.0;
     acq_config.record_lateness_cycles = static_cast<std::int64_t>(seconds * config.loop.rate_hz);
   }
-  const std::int64_t started_ns = mono_now();
+  const std::int64_t started_ns = mono_now_ns();
   std::unique_ptr<Acquisition> acq;
   try {
     const drivers::SourceContext ctx = make_source_context(config);
@@ -437,9 +432,9 @@ int run_daemon(const DaemonOptions& options) {
   const std::int64_t wait_ns =
       watchdog ? std::clamp<std::int64_t>(watchdog_every_ns / 4, 1'000'000, 20'000'000)
                : 20'000'000;
-  std::int64_t last_ping_ns = mono_now();
+  std::int64_t last_ping_ns = mono_now_ns();
   std::int64_t cycles_at_last_ping = 0;
-  std::int64_t last_status_ns = mono_now();
+  std::int64_t last_status_ns = mono_now_ns();
   std::int64_t cycles_at_last_status = 0;
   double rate_hz = 0.0;
   ServiceState notified_state = ServiceState::kStarting;
@@ -482,7 +477,7 @@ int run_daemon(const DaemonOptions& options) {
     }
 
     const std::int64_t cycles = acq->cycles();
-    const std::int64_t now = mono_now();
+    const std::int64_t now = mono_now_ns();
     if (!ready && cycles > 0) {
       // The first complete cycle: published, so clients can subscribe now.
       notify("READY=1\n" + status_line(*acq, rate_hz));

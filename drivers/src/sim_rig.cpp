@@ -540,4 +540,22 @@ int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_
   return n;
 }
 
+std::span<const SimFaultName> sim_fault_names() noexcept {
+  using K = SimFault::Kind;
+  static constexpr SimFaultName kNames[] = {
+      {K::kCountOffset, "glitch"}, {K::kCountRamp, "lost_counts"}, {K::kExcursion, "excursion"},
+      {K::kStuck, "stuck"},        {K::kSilence, "silence"},       {K::kDrop, "drop"},
+      {K::kPartial, "partial"},    {K::kDuplicate, "duplicate"},   {K::kBoardError, "board_error"},
+      {K::kReorder, "reorder"},    {K::kBadSeq, "bad_seq"},        {K::kWrongDlc, "wrong_dlc"},
+  };
+  return kNames;
+}
+
+std::string_view sim_fault_name(SimFault::Kind kind) noexcept {
+  for (const SimFaultName& n : sim_fault_names()) {
+    if (n.kind == kind) return n.name;
+  }
+  return "?";
+}
+
 }  // namespace exodaq::drivers::sim

@@ -2,36 +2,37 @@
 
 #include <stdexcept>
 
-#include "exodaq/drivers/replay_source.hpp"
-#include "exodaq/drivers/sim_options.hpp"
-#include "exodaq/drivers/sim_source.hpp"
-#include "exodaq/drivers/socketcan_source.hpp"
+#include "exodaq/drivers/replay_backend.hpp"
+#include "exodaq/drivers/sim_backend.hpp"
+#include "exodaq/drivers/socketcan_backend.hpp"
 
 namespace exodaq::drivers {
 
-namespace {
-std::unique_ptr<EncoderSource> make_sim(const SourceOptions& options, const SourceContext& ctx) {
-  return std::make_unique<SimSource>(sim_options_from(options, ctx));
+const std::vector<Backend>& backends() {
+  static const std::vector<Backend> list = {
+      sim_backend(),
+      socketcan_backend(),
+      replay_backend(),
+  };
+  return list;
 }
 
-std::unique_ptr<EncoderSource> make_socketcan(const SourceOptions& options,
-                                              const SourceContext& ctx) {
-  const SocketCanSourceConfig config = socketcan_config_from(options.socketcan, ctx);
-  return std::make_unique<SocketCanSource>(config, make_socketcan_port(config.port));
-}
-}  // namespace
-
-std::unique_ptr<EncoderSource> make_source(const SourceOptions& options, const SourceContext& ctx) {
-  switch (options.backend) {
-    case SourceBackend::kSim:
-      return make_sim(options, ctx);
-    case SourceBackend::kSocketCan:
-      return make_socketcan(options, ctx);
-    case SourceBackend::kReplay:
-      return std::make_unique<ReplaySource>(options.replay, ctx);
+const Backend* find_backend(std::string_view name) noexcept {
+  for (const Backend& b : backends()) {
+    if (b.name == name) return &b;
   }
-  throw std::runtime_error(std::string("source backend '") + backend_name(options.backend) +
-                           "' is not available in this build");
+  return nullptr;
+}
+
+std::unique_ptr<EncoderSource> make_source(const SourceOptions& options,
+                                           const SourceContext& context) {
+  const Backend* backend = find_backend(options.backend);
+  const BackendSettings* settings = options.section(options.backend);
+  if (backend == nullptr || settings == nullptr) {
+    throw std::runtime_error("source backend '" + options.backend +
+                             "' is not available in this build");
+  }
+  return backend->make(*settings, context);
 }
 
 }  // namespace exodaq::drivers

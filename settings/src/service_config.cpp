@@ -7,17 +7,11 @@
 #include <sstream>
 
 #include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/drivers/source_factory.hpp"
 
 namespace exodaq::config {
 
 namespace {
-
-std::string resolve(const std::string& base_file, const std::string& path) {
-  namespace fs = std::filesystem;
-  const fs::path p(path);
-  if (p.is_absolute()) return path;
-  return (fs::path(base_file).parent_path() / p).lexically_normal().string();
-}
 
 void parse_loop(MapReader m, LoopSettings& loop) {
   loop.rate_hz = m.number_or("rate_hz", loop.rate_hz);
@@ -41,109 +35,17 @@ void parse_loop(MapReader m, LoopSettings& loop) {
   m.finish();
 }
 
+// source: the selected backend, and every backend section the file has,
+// each parsed by its backend (drivers/backend.hpp).
 void parse_source(MapReader m, drivers::SourceOptions& src) {
-  const std::string backend = m.choice("backend", {"sim", "socketcan", "replay"});
-  src.backend = backend == "sim"         ? drivers::SourceBackend::kSim
-                : backend == "socketcan" ? drivers::SourceBackend::kSocketCan
-                                         : drivers::SourceBackend::kReplay;
-  if (auto s = m.optional_map("sim")) {
-    const std::int64_t seed = s->integer_or("seed", static_cast<std::int64_t>(src.sim.seed));
-    if (seed < 0) s->fail_key("seed", "source.sim.seed must be >= 0");
-    src.sim.seed = static_cast<std::uint64_t>(seed);
-    src.sim.loss_percent = s->number_or("loss_percent", src.sim.loss_percent);
-    if (src.sim.loss_percent < 0.0 || src.sim.loss_percent > 100.0) {
-      s->fail_key("loss_percent", "source.sim.loss_percent must be between 0 and 100");
-    }
-    src.sim.jitter_us = s->number_or("jitter_us", src.sim.jitter_us);
-    if (src.sim.jitter_us < 0.0 || src.sim.jitter_us > 400.0) {
-      s->fail_key("jitter_us", "source.sim.jitter_us must be between 0 and 400");
-    }
-    const std::int64_t pc = s->integer_or("powerup_count", src.sim.powerup_count);
-    if (pc < 0 || pc > 0xFFFF)
-      s->fail_key("powerup_count", "source.sim.powerup_count must be 0..65535");
-    src.sim.powerup_count = static_cast<std::uint16_t>(pc);
-    if (auto faults = s->optional_child("faults")) {
-      if (!faults->IsSequence()) s->fail(*faults, "source.sim.faults must be a list");
-      for (std::size_t i = 0; i < faults->size(); ++i) {
-        MapReader f(m.file(), (*faults)[i], "source.sim.faults[" + std::to_string(i) + "]");
-        using Kind = drivers::sim::SimFault::Kind;
-        static const std::vector<std::pair<std::string, Kind>> kinds = {
-            {"glitch", Kind::kCountOffset},     {"lost_counts", Kind::kCountRamp},
-            {"excursion", Kind::kExcursion},    {"stuck", Kind::kStuck},
-            {"silence", Kind::kSilence},        {"drop", Kind::kDrop},
-            {"partial", Kind::kPartial},        {"duplicate", Kind::kDuplicate},
-            {"board_error", Kind::kBoardError}, {"reorder", Kind::kReorder},
-            {"bad_seq", Kind::kBadSeq},         {"wrong_dlc", Kind::kWrongDlc}};
-        std::vector<std::string> names;
-        for (const auto& k : kinds) names.push_back(k.first);
-        const std::string kind = f.choice("kind", names);
-        drivers::sim::SimFault fault;
-        for (const auto& k : kinds) {
-          if (k.first == kind) fault.kind = k.second;
-        }
-        fault.start_s = f.number("at_s");
-        if (fault.start_s < 0) f.fail_key("at_s", "at_s must be >= 0");
-        fault.duration_s = f.number_or("for_s", 0.0);
-        const std::int64_t joint = f.integer_or("joint", 1);
-        if (joint < 1 || joint > kJointCount) f.fail_key("joint", "joint must be 1..6");
-        fault.joint = static_cast<int>(joint - 1);
-        fault.counts = f.integer_or("counts", 0);
-        fault.percent = f.number_or("percent", 0.0);
-        if (fault.percent < 0 || fault.percent > 100)
-          f.fail_key("percent", "percent must be in [0, 100]");
-        const std::int64_t bits = f.integer_or("error_bits", 0);
-        if (bits < 0 || bits > 255) f.fail_key("error_bits", "error_bits must be 0..255");
-        fault.error_bits = static_cast<std::uint8_t>(bits);
-        f.finish();
-        src.sim.faults.push_back(fault);
-      }
-    }
-    s->finish();
-  }
-  if (auto s = m.optional_map("socketcan")) {
-    src.socketcan.interface = s->string_or("interface", src.socketcan.interface);
-    if (src.socketcan.interface.empty() || src.socketcan.interface.size() > 15) {
-      s->fail_key("interface",
-                  "source.socketcan.interface must be a network interface name (1-15 characters)");
-    }
-    src.socketcan.sync_master = s->boolean_or("sync_master", src.socketcan.sync_master);
-    src.socketcan.board = static_cast<int>(s->integer_or("board", src.socketcan.board));
-    if (src.socketcan.board < 0 || src.socketcan.board > 7)
-      s->fail_key("board", "source.socketcan.board must be 0..7");
-    src.socketcan.rcvbuf_bytes =
-        static_cast<int>(s->integer_or("rcvbuf_bytes", src.socketcan.rcvbuf_bytes));
-    if (src.socketcan.rcvbuf_bytes < 4096)
-      s->fail_key("rcvbuf_bytes", "source.socketcan.rcvbuf_bytes must be >= 4096");
-    src.socketcan.read_deadline_us =
-        s->number_or("read_deadline_us", src.socketcan.read_deadline_us);
-    if (src.socketcan.read_deadline_us <= 0.0 || src.socketcan.read_deadline_us > 900.0) {
-      s->fail_key("read_deadline_us", "source.socketcan.read_deadline_us must be in (0, 900]");
-    }
-    src.socketcan.reopen_interval_ms =
-        s->number_or("reopen_interval_ms", src.socketcan.reopen_interval_ms);
-    if (src.socketcan.reopen_interval_ms < 10.0 || src.socketcan.reopen_interval_ms > 60'000.0) {
-      s->fail_key("reopen_interval_ms",
-                  "source.socketcan.reopen_interval_ms must be between 10 and 60000");
-    }
-    s->finish();
-  }
-  if (auto s = m.optional_map("replay")) {
-    src.replay.path = resolve(m.file(), s->string("path"));
-    src.replay.format = s->choice_or("format", {"auto", "lcm", "candump"}, src.replay.format);
-    src.replay.channel = s->string_or("channel", src.replay.channel);
-    if (s->has("speed")) {
-      const YAML::Node sp = s->child("speed");
-      if (sp.IsScalar() && sp.Scalar() == "max") {
-        src.replay_speed = 0.0;
-      } else {
-        src.replay_speed = s->to_number(sp, "speed");
-        if (src.replay_speed <= 0.0) s->fail(sp, "source.replay.speed must be positive or 'max'");
-      }
-    }
-    s->finish();
-  }
-  if (src.backend == drivers::SourceBackend::kReplay && src.replay.path.empty()) {
-    m.fail_key("backend", "source.backend replay needs source.replay.path");
+  std::vector<std::string> names;
+  for (const auto& b : drivers::backends()) names.push_back(b.name);
+  src.backend = m.choice("backend", names);
+  for (const auto& b : drivers::backends()) {
+    std::optional<MapReader> section = m.optional_map(b.name);
+    const bool selected = b.name == src.backend;
+    if (!section && !selected) continue;
+    src.sections[b.name] = b.parse(section ? &*section : nullptr, m, selected);
   }
   m.finish();
 }
@@ -260,8 +162,8 @@ ServiceConfig parse(const YAML::Node& root, const std::string& file) {
   if (auto m = top.optional_map("loop")) parse_loop(*m, c.loop);
   parse_source(top.map("source"), c.source);
   parse_encoders(top.map("encoders"), c.encoders);
-  c.model_path = resolve(file, top.string("model"));
-  c.calibration_path = resolve(file, top.string("calibration"));
+  c.model_path = top.path("model");
+  c.calibration_path = top.path("calibration");
   if (auto m = top.optional_map("kinematics")) {
     c.singularity_threshold = m->number_or("singularity_threshold", c.singularity_threshold);
     if (c.singularity_threshold < 0.0 || c.singularity_threshold >= 1.0) {

@@ -2,7 +2,6 @@
 //   build/tests/bad-input/bad_input_make_lcm tests/bad-input/lcm
 // Each is a small lcm-logger-format log damaged in one way; the messages they
 // must produce are in the checked-in lcm/<name>.expected.
-#include <lcm/lcm.h>
 
 #include <cstdint>
 #include <cstdio>
@@ -15,6 +14,7 @@
 
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
+#include "exodaq/messages/lcm_log.hpp"
 
 namespace fs = std::filesystem;
 
@@ -54,18 +54,11 @@ exodaq::joint_state_t joint_state(std::int64_t seq) {
 
 void write_log(const fs::path& path, const Events& events) {
   fs::remove(path);
-  lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "w");
+  exodaq::msg::LogWriter log(path);
   std::int64_t t = 1'700'000'000'000'000;
-  for (const auto& [channel, data] : events) {
-    lcm_eventlog_event_t ev{};
-    ev.timestamp = t += 1000;
-    ev.channellen = static_cast<std::int32_t>(channel.size());
-    ev.datalen = static_cast<std::int32_t>(data.size());
-    ev.channel = const_cast<char*>(channel.c_str());
-    ev.data = const_cast<std::uint8_t*>(data.data());
-    lcm_eventlog_write_event(log, &ev);
-  }
-  lcm_eventlog_destroy(log);
+  for (const auto& [channel, data] : events)
+    log.write(channel, t += 1000, data.data(), data.size());
+  log.close();
 }
 
 Events good(int n, const std::string& channel = "EXO_ENCODER_RAW") {

@@ -9,6 +9,7 @@
 
 #include "alloc_counter.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
+#include "exodaq/drivers/socketcan_backend.hpp"
 #include "exodaq/drivers/socketcan_source.hpp"
 #include "memory_can_port.hpp"
 

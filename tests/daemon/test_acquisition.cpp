@@ -64,7 +64,7 @@ class MemorySink final : public core::MessageSink {
   bool keep = false;
   std::array<std::int64_t, 4> counts{};
   std::mutex mutex;
-  std::vector<std::pair<core::ChannelId, std::vector<std::uint8_t>>> kept;
+  std::vector<std::pair<exodaq::msg::Kind, std::vector<std::uint8_t>>> kept;
   bool publish(const std::string&, const core::OutgoingMessage& msg) noexcept override {
     ++counts[static_cast<std::size_t>(msg.channel)];
     if (keep) {
@@ -121,7 +121,7 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
 
   std::int64_t expected_seq = 0;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel == core::ChannelId::kJointState) {
+    if (channel == exodaq::msg::Kind::kJointState) {
       const auto js = decode<exodaq::joint_state_t>(bytes);
       EXPECT_EQ(js.seq, expected_seq++);
       EXPECT_EQ(js.run_id, acq->run_id());
@@ -133,7 +133,7 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
         EXPECT_TRUE(js.flags[0] & exodaq::joint_state_t::JOINT_UNHOMED);
       }
     }
-    if (channel == core::ChannelId::kStatus) {
+    if (channel == exodaq::msg::Kind::kStatus) {
       const auto st = decode<exodaq::status_t>(bytes);
       EXPECT_EQ(st.rig, "sim-macaque");
       EXPECT_EQ(st.window_cycles, 100);
@@ -160,7 +160,7 @@ TEST(Acquisition, PalmIsValidOnlyWhenHomedAndTheSampleIsPresent) {
   int valid = 0;
   int checked = 0;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel != core::ChannelId::kPalmPose) continue;
+    if (channel != exodaq::msg::Kind::kPalmPose) continue;
     const auto p = decode<exodaq::palm_pose_t>(bytes);
     ++checked;
     const bool missing = p.seq > 10 && p.seq % 50 == 0;

@@ -13,7 +13,7 @@ class KeepingSink final : public core::MessageSink {
   bool publish(const std::string&, const core::OutgoingMessage& m) noexcept override {
     try {
       switch (m.channel) {
-        case core::ChannelId::kJointState: {
+        case exodaq::msg::Kind::kJointState: {
           exodaq::joint_state_t js;
           js.decode(m.bytes.data(), 0, static_cast<int>(m.size));
           if (static_cast<std::size_t>(js.seq) >= out->cycles.size()) {
@@ -22,7 +22,7 @@ class KeepingSink final : public core::MessageSink {
           out->cycles[static_cast<std::size_t>(js.seq)].joint = js;
           break;
         }
-        case core::ChannelId::kPalmPose: {
+        case exodaq::msg::Kind::kPalmPose: {
           exodaq::palm_pose_t p;
           p.decode(m.bytes.data(), 0, static_cast<int>(m.size));
           if (static_cast<std::size_t>(p.seq) >= out->cycles.size()) {
@@ -31,13 +31,13 @@ class KeepingSink final : public core::MessageSink {
           out->cycles[static_cast<std::size_t>(p.seq)].palm = p;
           break;
         }
-        case core::ChannelId::kStatus: {
+        case exodaq::msg::Kind::kStatus: {
           exodaq::status_t s;
           s.decode(m.bytes.data(), 0, static_cast<int>(m.size));
           out->statuses.push_back(s);
           break;
         }
-        case core::ChannelId::kEncoderRaw:
+        case exodaq::msg::Kind::kEncoderRaw:
           break;
       }
     } catch (...) {

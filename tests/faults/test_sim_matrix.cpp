@@ -10,6 +10,7 @@
 #include <regex>
 #include <sstream>
 
+#include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
 #include "matrix_checks.hpp"
 
@@ -73,13 +74,17 @@ TEST(SimMatrix, OnePercentFrameLossIsCountedExactlyAndNeverValid) {
   auto cfg = sim_config();
   SimFault f = fault(SimFault::Kind::kDrop, 12.0, 10.0);
   f.percent = 1.0;
-  cfg.source.sim.faults.push_back(f);
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(f);
   const auto r = run_scenario(cfg, 23.0);
   // The cycles the simulator dropped, and the runs of them (one seq gap each).
   std::vector<std::int64_t> dropped;
   std::int64_t runs = 0;
   for (std::int64_t k = 12000; k < 22000; ++k) {
-    if (unit_random(cfg.source.sim.seed, 4, static_cast<std::uint64_t>(k)) * 100.0 < 1.0) {
+    if (unit_random(cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->seed, 4,
+                    static_cast<std::uint64_t>(k)) *
+            100.0 <
+        1.0) {
       if (dropped.empty() || dropped.back() != k - 1) ++runs;
       dropped.push_back(k);
     }
@@ -112,7 +117,8 @@ TEST(SimMatrix, ReorderedCountFramesAreDroppedAsOutOfOrderAndTheCycleMissing) {
   // From 12.0 s for 100 ms, every other cycle's COUNTS_A/B reach the bus after
   // the next cycle's: cycles 12000, 12002, ..., 12098 (50 pairs).
   auto cfg = sim_config();
-  cfg.source.sim.faults.push_back(fault(SimFault::Kind::kReorder, 12.0, 0.1));
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(fault(SimFault::Kind::kReorder, 12.0, 0.1));
   const auto r = run_scenario(cfg, 14.0);
   const auto& s = r.last_status();
   // The decoder does not wait for a late cycle: at its deadline the held-back
@@ -146,7 +152,8 @@ TEST(SimMatrix, ABadSequenceByteDropsTheCycleAsOutOfOrder) {
   auto cfg = sim_config();
   const auto bad = every(12001, 12451, 50);
   for (const std::int64_t k : bad)
-    cfg.source.sim.faults.push_back(one_cycle(SimFault::Kind::kBadSeq, k));
+    exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+        .faults.push_back(one_cycle(SimFault::Kind::kBadSeq, k));
   const auto r = run_scenario(cfg, 14.0);
   const auto& s = r.last_status();
   // Both halves dropped (out of order, flagged on the cycle's own missing
@@ -173,7 +180,8 @@ TEST(SimMatrix, AWrongDlcCountFrameIsABadFrameAndAPartialSample) {
   auto cfg = sim_config();
   const auto bad = every(12001, 12451, 50);
   for (const std::int64_t k : bad) {
-    cfg.source.sim.faults.push_back(one_cycle(SimFault::Kind::kWrongDlc, k));
+    exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+        .faults.push_back(one_cycle(SimFault::Kind::kWrongDlc, k));
   }
   const auto r = run_scenario(cfg, 14.0);
   const auto& s = r.last_status();
@@ -214,9 +222,13 @@ TEST(SimMatrix, TheNewFaultKindsAreAvailableFromTheServiceConfig) {
   std::ofstream(path) << yaml;
   const auto cfg = exodaq::config::load_service_config(path);
   std::remove(path.c_str());
-  ASSERT_EQ(cfg.source.sim.faults.size(), 3u);
-  EXPECT_EQ(cfg.source.sim.faults[0].kind, SimFault::Kind::kReorder);
-  EXPECT_EQ(cfg.source.sim.faults[1].kind, SimFault::Kind::kBadSeq);
-  EXPECT_EQ(cfg.source.sim.faults[2].kind, SimFault::Kind::kWrongDlc);
-  EXPECT_DOUBLE_EQ(cfg.source.sim.faults[0].duration_s, 0.1);
+  ASSERT_EQ(cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->faults.size(), 3u);
+  EXPECT_EQ(cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->faults[0].kind,
+            SimFault::Kind::kReorder);
+  EXPECT_EQ(cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->faults[1].kind,
+            SimFault::Kind::kBadSeq);
+  EXPECT_EQ(cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->faults[2].kind,
+            SimFault::Kind::kWrongDlc);
+  EXPECT_DOUBLE_EQ(
+      cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->faults[0].duration_s, 0.1);
 }

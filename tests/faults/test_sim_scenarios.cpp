@@ -8,6 +8,7 @@
 #include <cmath>
 #include <vector>
 
+#include "exodaq/drivers/sim_backend.hpp"
 #include "matrix_checks.hpp"
 #include "scenario.hpp"
 
@@ -112,7 +113,8 @@ TEST(SimScenario, HomingOutsideTheLimitsIsRejected) {
 
 TEST(SimScenario, CounterGlitchIsFlaggedUntilTheNextIndexThenReHomed) {
   auto cfg = sim_config();
-  cfg.source.sim.faults.push_back(fault(SimFault::Kind::kCountOffset, 12.0, 0.0, 0, 1000));
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(fault(SimFault::Kind::kCountOffset, 12.0, 0.0, 0, 1000));
   const auto r = run_scenario(cfg, 30.0);
   const std::int64_t at =
       r.first([](const Cycle& c) { return c.joint.flags[0] & joint_state_t::JOINT_GLITCH; });
@@ -143,7 +145,8 @@ TEST(SimScenario, CounterGlitchIsFlaggedUntilTheNextIndexThenReHomed) {
 TEST(SimScenario, IndexDriftOfFiveCountsIsLostCountsAtTheNextIndex) {
   auto cfg = sim_config();
   // Five counts lost one per cycle: each step is plausible, only the index can tell.
-  cfg.source.sim.faults.push_back(fault(SimFault::Kind::kCountRamp, 12.0, 0.0, 2, -5));
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(fault(SimFault::Kind::kCountRamp, 12.0, 0.0, 2, -5));
   const auto r = run_scenario(cfg, 30.0);
   const auto& s = r.last_status();
   EXPECT_EQ(s.glitches[2], 0);
@@ -167,7 +170,8 @@ TEST(SimScenario, IndexDriftOfFiveCountsIsLostCountsAtTheNextIndex) {
 
 TEST(SimScenario, FiftyMillisecondsOfSilenceIsMissingStaleThenRecovers) {
   auto cfg = sim_config();
-  cfg.source.sim.faults.push_back(fault(SimFault::Kind::kSilence, 12.0, 0.050));
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(fault(SimFault::Kind::kSilence, 12.0, 0.050));
   const auto r = run_scenario(cfg, 16.0);
   const auto& s = r.last_status();
   EXPECT_EQ(s.missing_samples, 50);
@@ -195,7 +199,8 @@ TEST(SimScenario, FiftyMillisecondsOfSilenceIsMissingStaleThenRecovers) {
 
 TEST(SimScenario, TwoSecondsOfSilenceIsAFaultThenRecoversWithoutReHoming) {
   auto cfg = sim_config();
-  cfg.source.sim.faults.push_back(fault(SimFault::Kind::kSilence, 12.0, 2.0));
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(fault(SimFault::Kind::kSilence, 12.0, 2.0));
   const auto r = run_scenario(cfg, 18.0);
   const auto& s = r.last_status();
   EXPECT_EQ(s.missing_samples, 2000);
@@ -212,7 +217,8 @@ TEST(SimScenario, TenPercentFrameLossIsCountedAndFlaggedCycleByCycle) {
   auto cfg = sim_config();
   SimFault f = fault(SimFault::Kind::kDrop, 12.0, 3.0);
   f.percent = 10.0;
-  cfg.source.sim.faults.push_back(f);
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(f);
   const auto r = run_scenario(cfg, 16.0);
   const auto& s = r.last_status();
   const std::int64_t missing = count_sample_flag(r, joint_state_t::SAMPLE_MISSING);
@@ -229,7 +235,8 @@ TEST(SimScenario, TenPercentFrameLossIsCountedAndFlaggedCycleByCycle) {
 
 TEST(SimScenario, LostCountsBFrameIsAPartialSample) {
   auto cfg = sim_config();
-  cfg.source.sim.faults.push_back(fault(SimFault::Kind::kPartial, 12.0, 0.1));
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(fault(SimFault::Kind::kPartial, 12.0, 0.1));
   const auto r = run_scenario(cfg, 14.0);
   EXPECT_EQ(count_sample_flag(r, joint_state_t::SAMPLE_PARTIAL), 100);
   for (std::int64_t k = 12000; k < 12100; ++k) {
@@ -245,7 +252,8 @@ TEST(SimScenario, LostCountsBFrameIsAPartialSample) {
 
 TEST(SimScenario, DuplicatedFramesAreDroppedCountedAndFlagged) {
   auto cfg = sim_config();
-  cfg.source.sim.faults.push_back(fault(SimFault::Kind::kDuplicate, 12.0, 0.1));
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(fault(SimFault::Kind::kDuplicate, 12.0, 0.1));
   const auto r = run_scenario(cfg, 14.0);
   EXPECT_EQ(r.last_status().duplicates, 100);
   EXPECT_EQ(count_sample_flag(r, joint_state_t::SAMPLE_DUPLICATE), 100);
@@ -258,7 +266,8 @@ TEST(SimScenario, BoardErrorBitsInvalidateUntilTheHeartbeatClears) {
   auto cfg = sim_config();
   SimFault f = fault(SimFault::Kind::kBoardError, 12.0, 0.5);
   f.error_bits = 0x01;  // quadrature error
-  cfg.source.sim.faults.push_back(f);
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(f);
   const auto r = run_scenario(cfg, 15.0);
   // Heartbeats come every 100 ms: the error shows from the first heartbeat in
   // the window (12.0 s) to the first heartbeat after it (12.5 s).
@@ -279,7 +288,8 @@ TEST(SimScenario, AJointDrivenBeyondItsLimitIsOutOfRangeWhileThere) {
   auto cfg = sim_config();
   // The elbow (joint 5) is pushed 900 counts (32 deg) up and back over 2 s,
   // past its 8.1 deg limit + 2 deg margin.
-  cfg.source.sim.faults.push_back(fault(SimFault::Kind::kExcursion, 12.0, 2.0, 4, 900));
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(fault(SimFault::Kind::kExcursion, 12.0, 2.0, 4, 900));
   const auto r = run_scenario(cfg, 16.0);
   const auto& s = r.last_status();
   EXPECT_EQ(s.out_of_range_events[4], 1);
@@ -302,7 +312,8 @@ TEST(SimScenario, AJointDrivenBeyondItsLimitIsOutOfRangeWhileThere) {
 
 TEST(SimScenario, AStuckChannelIsCaughtWhenItResumes) {
   auto cfg = sim_config();
-  cfg.source.sim.faults.push_back(fault(SimFault::Kind::kStuck, 12.0, 1.0, 2));
+  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+      .faults.push_back(fault(SimFault::Kind::kStuck, 12.0, 1.0, 2));
   const auto r = run_scenario(cfg, 30.0);
   const auto& s = r.last_status();
   // A frozen counter looks like a joint at rest; when it resumes, the jump is

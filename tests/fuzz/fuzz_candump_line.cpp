@@ -6,7 +6,7 @@
 #include <string_view>
 
 #include "exodaq/drivers/can_codec.hpp"
-#include "exodaq/drivers/replay_source.hpp"
+#include "exodaq/drivers/candump.hpp"
 #include "fuzz_input.hpp"
 
 namespace can = exodaq::drivers::can;

@@ -2,7 +2,6 @@
 // checked in as written by hand). Run once after a format change:
 //   build/tests/fuzz/fuzz_make_corpus tests/fuzz/corpus
 // Seeds are small, valid or near-valid inputs in each target's input layout.
-#include <lcm/lcm.h>
 
 #include <array>
 #include <cstdint>
@@ -15,6 +14,7 @@
 #include "exodaq/drivers/can_codec.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
+#include "exodaq/messages/lcm_log.hpp"
 
 namespace can = exodaq::drivers::can;
 namespace fs = std::filesystem;
@@ -83,18 +83,11 @@ Buf encoded(const T& m) {
 void write_lcm_log(const fs::path& path, const std::vector<std::pair<std::string, Buf>>& events) {
   fs::create_directories(path.parent_path());
   fs::remove(path);
-  lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "w");
+  exodaq::msg::LogWriter log(path);
   std::int64_t t = 1'700'000'000'000'000;
-  for (const auto& [channel, data] : events) {
-    lcm_eventlog_event_t ev{};
-    ev.timestamp = t += 1000;
-    ev.channellen = static_cast<std::int32_t>(channel.size());
-    ev.datalen = static_cast<std::int32_t>(data.size());
-    ev.channel = const_cast<char*>(channel.c_str());
-    ev.data = const_cast<std::uint8_t*>(data.data());
-    lcm_eventlog_write_event(log, &ev);
-  }
-  lcm_eventlog_destroy(log);
+  for (const auto& [channel, data] : events)
+    log.write(channel, t += 1000, data.data(), data.size());
+  log.close();
 }
 
 }  // namespace

@@ -1,9 +1,9 @@
 #include "recording.hpp"
 
-#include <lcm/lcm.h>
-
 #include <cstdio>
 #include <stdexcept>
+
+#include "exodaq/messages/lcm_log.hpp"
 
 namespace exodaq::test {
 
@@ -28,18 +28,13 @@ std::vector<RecordedMessage> read_recorder_file(const std::string& path) {
 
 std::vector<RecordedMessage> read_lcm_log(const std::string& path) {
   std::vector<RecordedMessage> out;
-  lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "r");
-  if (log == nullptr) throw std::runtime_error("cannot open LCM log " + path);
-  while (lcm_eventlog_event_t* e = lcm_eventlog_read_next_event(log)) {
+  for (auto& e : msg::read_log(path)) {
     RecordedMessage m;
-    m.channel.assign(e->channel, e->channellen);
-    const auto* d = static_cast<const std::uint8_t*>(e->data);
-    m.data.assign(d, d + e->datalen);
-    m.time = e->timestamp;
+    m.channel = std::move(e.channel);
+    m.data = std::move(e.data);
+    m.time = e.timestamp;
     out.push_back(std::move(m));
-    lcm_eventlog_free_event(e);
   }
-  lcm_eventlog_destroy(log);
   return out;
 }
 

@@ -1,6 +1,5 @@
 #include "replay_support.hpp"
 
-#include <lcm/lcm.h>
 #include <sys/stat.h>
 
 #include <cstdio>
@@ -9,38 +8,6 @@
 #include <stdexcept>
 
 namespace exodaq::test {
-
-std::vector<LogEvent> read_log(const std::string& path) {
-  std::vector<LogEvent> out;
-  lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "r");
-  if (log == nullptr) throw std::runtime_error("cannot open LCM log " + path);
-  while (lcm_eventlog_event_t* e = lcm_eventlog_read_next_event(log)) {
-    LogEvent m;
-    m.channel.assign(e->channel, static_cast<std::size_t>(e->channellen));
-    const auto* d = static_cast<const std::uint8_t*>(e->data);
-    m.data.assign(d, d + e->datalen);
-    m.timestamp = e->timestamp;
-    out.push_back(std::move(m));
-    lcm_eventlog_free_event(e);
-  }
-  lcm_eventlog_destroy(log);
-  return out;
-}
-
-void write_log(const std::string& path, const std::vector<LogEvent>& events) {
-  lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "w");
-  if (log == nullptr) throw std::runtime_error("cannot create LCM log " + path);
-  for (const auto& e : events) {
-    lcm_eventlog_event_t ev{};
-    ev.timestamp = e.timestamp;
-    ev.channellen = static_cast<std::int32_t>(e.channel.size());
-    ev.datalen = static_cast<std::int32_t>(e.data.size());
-    ev.channel = const_cast<char*>(e.channel.c_str());
-    ev.data = const_cast<std::uint8_t*>(e.data.data());
-    lcm_eventlog_write_event(log, &ev);
-  }
-  lcm_eventlog_destroy(log);
-}
 
 std::string read_text(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -7,17 +7,13 @@
 #include <vector>
 
 #include "exodaq/drivers/sim_rig.hpp"
+#include "exodaq/messages/lcm_log.hpp"
 
 namespace exodaq::test {
 
-struct LogEvent {
-  std::string channel;
-  std::vector<std::uint8_t> data;
-  std::int64_t timestamp = 0;
-};
-
-std::vector<LogEvent> read_log(const std::string& path);
-void write_log(const std::string& path, const std::vector<LogEvent>& events);
+using LogEvent = msg::OwnedEvent;
+using msg::read_log;
+using msg::write_log;
 
 // Decodes every event of `channel` as Msg, keyed by seq (the daemon's
 // all-zero start-up messages, utime == 0, are left out).

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "alloc_counter.hpp"
-#include "exodaq/drivers/replay_source.hpp"
+#include "exodaq/drivers/candump.hpp"
 #include "replay_support.hpp"
 
 namespace exodaq::drivers {

@@ -16,7 +16,7 @@
 #include <thread>
 
 #include "exodaq/config/service_config.hpp"
-#include "exodaq/drivers/sim_options.hpp"
+#include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"

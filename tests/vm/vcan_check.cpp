@@ -44,6 +44,7 @@
 
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/can_codec.hpp"
+#include "exodaq/drivers/socketcan_backend.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
@@ -234,7 +235,7 @@ int main(int argc, char** argv) {
   const std::string prefix = cfg.lcm.prefix;
   if (url.empty()) url = cfg.lcm.url;
   exodaq::drivers::can::ProtocolIds ids;
-  ids.board = static_cast<std::uint32_t>(cfg.source.socketcan.board);
+  ids.board = static_cast<std::uint32_t>(exodaq::drivers::socketcan_board(cfg.source));
 
   lcm::LCM lc(url);
   if (!lc.good()) {

@@ -33,8 +33,9 @@
 
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/can_codec.hpp"
-#include "exodaq/drivers/sim_options.hpp"
+#include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
+#include "exodaq/drivers/socketcan_backend.hpp"
 
 namespace {
 
@@ -441,7 +442,8 @@ static int run_main(int argc, char** argv) {
       source = cfg.source;
       options =
           exodaq::drivers::sim_options_from(cfg.source, exodaq::config::make_source_context(cfg));
-      options.board.ids.board = static_cast<std::uint32_t>(cfg.source.socketcan.board);
+      options.board.ids.board =
+          static_cast<std::uint32_t>(exodaq::drivers::socketcan_board(cfg.source));
     }
     if (seed >= 0) options.seed = static_cast<std::uint64_t>(seed);
     if (board >= 0) options.board.ids.board = static_cast<std::uint32_t>(board);

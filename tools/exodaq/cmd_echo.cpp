@@ -13,7 +13,11 @@
 #include <vector>
 
 #include "command.hpp"
-#include "subscriber.hpp"
+#include "exodaq/common/clock_now.hpp"
+#include "exodaq/messages/channels.hpp"
+#include "exodaq/messages/fields.hpp"
+#include "exodaq/messages/flag_names.hpp"
+#include "exodaq/messages/subscriber.hpp"
 
 namespace exodaq::tools {
 namespace {
@@ -36,7 +40,7 @@ struct EchoOptions {
   std::string channel = "joint_state";
   bool csv = false;
   std::string prefix;
-  std::string url = sub::kDefaultUrl;
+  std::string url = msg::kDefaultUrl;
   int64_t count = 0;      // 0: no limit
   double duration = 0.0;  // s, 0: no limit
 };
@@ -47,7 +51,7 @@ constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 // mono_ns (not from our receive times, which carry network jitter).
 class RateMeter {
  public:
-  void add(const sub::Stamp& s, int64_t local_mono_ns) {
+  void add(const msg::Stamp& s, int64_t local_mono_ns) {
     if (!window_.empty() && (s.run_id != window_.back().run_id || s.seq <= window_.back().seq)) {
       window_.clear();  // daemon restarted or sequence went back
     }
@@ -88,11 +92,11 @@ class Table {
  public:
   explicit Table(const EchoOptions& o) : opt_(o) {}
 
-  void on(const sub::Received& r, int64_t local_ns) {
+  void on(const msg::Received& r, int64_t local_ns) {
     if (const auto* j = std::get_if<joint_state_t>(&r.msg)) {
       joint_ = *j;
       joint_local_ns_ = local_ns;
-      meter_.add(sub::stamp_of(r.msg), local_ns);
+      meter_.add(msg::stamp_of(r.msg), local_ns);
     } else if (const auto* p = std::get_if<palm_pose_t>(&r.msg)) {
       palm_ = *p;
     } else if (const auto* s = std::get_if<status_t>(&r.msg)) {
@@ -110,7 +114,7 @@ class Table {
                   opt_.prefix.c_str());
     lines.emplace_back(buf);
     if (!joint_) {
-      lines.emplace_back("waiting for " + sub::channel_name(opt_.prefix, sub::Kind::kJointState) +
+      lines.emplace_back("waiting for " + msg::channel_name(opt_.prefix, msg::Kind::kJointState) +
                          " ...");
     } else {
       const auto& j = *joint_;
@@ -121,14 +125,14 @@ class Table {
           buf, sizeof buf, "seq %lld  run %016llx  rate %s Hz  received %s %%  sample %s%s",
           static_cast<long long>(j.seq), static_cast<unsigned long long>(j.run_id),
           rate ? fmt("%.1f", *rate).c_str() : "-", recv ? fmt("%.2f", *recv * 100.0).c_str() : "-",
-          sub::sample_flag_names(j.sample_flags).c_str(),
+          msg::sample_flag_names(j.sample_flags).c_str(),
           age_s > 1.0 ? fmt("  (no data for %.0f s)", age_s).c_str() : "");
       lines.emplace_back(buf);
       lines.emplace_back("joint                  angle deg   vel deg/s  homed  flags");
       for (int i = 0; i < 6; ++i) {
         std::snprintf(buf, sizeof buf, "%-20.20s %11.3f %11.2f  %-5s  %s", j.name[i].c_str(),
                       j.position[i] * kRadToDeg, j.velocity[i] * kRadToDeg,
-                      j.homed[i] ? "yes" : "no", sub::joint_flag_names(j.flags[i]).c_str());
+                      j.homed[i] ? "yes" : "no", msg::joint_flag_names(j.flags[i]).c_str());
         lines.emplace_back(buf);
       }
     }
@@ -137,13 +141,13 @@ class Table {
       std::snprintf(
           buf, sizeof buf, "palm mm  x %8.2f  y %8.2f  z %8.2f  valid %s  manip %.3f%s  seq %lld",
           p.position[0] * 1e3, p.position[1] * 1e3, p.position[2] * 1e3,
-          p.valid ? "yes" : ("no (" + sub::invalid_reason_names(p.invalid_reason) + ")").c_str(),
+          p.valid ? "yes" : ("no (" + msg::invalid_reason_names(p.invalid_reason) + ")").c_str(),
           p.shoulder_manipulability, p.near_singular ? " NEAR-SINGULAR" : "",
           static_cast<long long>(p.seq));
       lines.emplace_back(buf);
     } else {
       lines.emplace_back("palm     waiting for " +
-                         sub::channel_name(opt_.prefix, sub::Kind::kPalmPose));
+                         msg::channel_name(opt_.prefix, msg::Kind::kPalmPose));
     }
     if (raw_) {
       const auto& e = *raw_;
@@ -157,15 +161,15 @@ class Table {
       const auto& s = *status_;
       const double age_s = static_cast<double>(local_ns - status_local_ns_) * 1e-9;
       std::snprintf(buf, sizeof buf, "status   %s  \"%.60s\"  overruns %lld  clock %s  bus %s%s",
-                    std::string(sub::state_name(s.state)).c_str(), s.message.c_str(),
+                    std::string(msg::state_name(s.state)).c_str(), s.message.c_str(),
                     static_cast<long long>(s.overruns),
                     s.clock_synchronised ? "synced" : "UNSYNCED",
-                    std::string(sub::bus_state_name(s.bus_state)).c_str(),
+                    std::string(msg::bus_state_name(s.bus_state)).c_str(),
                     age_s > 1.0 ? fmt("  (stale %.0f s)", age_s).c_str() : "");
       lines.emplace_back(buf);
     } else {
       lines.emplace_back("status   waiting for " +
-                         sub::channel_name(opt_.prefix, sub::Kind::kStatus));
+                         msg::channel_name(opt_.prefix, msg::Kind::kStatus));
     }
 
     std::string out;
@@ -191,51 +195,51 @@ class Table {
 
 int run_echo(const EchoOptions& opt) {
   const bool csv = opt.csv || !isatty(STDOUT_FILENO);
-  const auto kind = sub::parse_kind(opt.channel);
+  const auto kind = msg::parse_kind(opt.channel);
   // A name we do not know is a literal channel; its type comes from the payload.
-  const std::string channel = kind ? sub::channel_name(opt.prefix, *kind) : opt.channel;
+  const std::string channel = kind ? msg::channel_name(opt.prefix, *kind) : opt.channel;
 
-  sub::Subscriber subscriber(opt.url);
+  msg::Subscriber subscriber(opt.url);
   install_stop_handlers();
 
   int64_t received = 0;  // messages on the chosen channel
   bool header_done = false;
-  std::optional<sub::Kind> csv_kind = kind;
-  auto print_header = [&](sub::Kind k) {
-    const auto names = sub::field_names(k);
-    std::fprintf(stdout, "%s\n", sub::csv_line(names).c_str());
+  std::optional<msg::Kind> csv_kind = kind;
+  auto print_header = [&](msg::Kind k) {
+    const auto names = msg::field_names(k);
+    std::fprintf(stdout, "%s\n", msg::csv_line(names).c_str());
     header_done = true;
   };
 
   Table table(opt);
   if (csv) {
     if (kind) print_header(*kind);
-    subscriber.subscribe(channel, kind, [&](const sub::Received& r) {
+    subscriber.subscribe(channel, kind, [&](const msg::Received& r) {
       if (opt.count > 0 && received >= opt.count) return;
-      const auto k = sub::kind_of(r.msg);
+      const auto k = msg::kind_of(r.msg);
       if (!csv_kind) csv_kind = k;
       if (k != *csv_kind) return;  // a literal channel carrying mixed types: keep the first
       if (!header_done) print_header(k);
       std::vector<std::string> values;
-      for (auto& f : sub::fields(r.msg)) values.push_back(std::move(f.value));
-      const std::string line = sub::csv_line(values) + "\n";
+      for (auto& f : msg::fields(r.msg)) values.push_back(std::move(f.value));
+      const std::string line = msg::csv_line(values) + "\n";
       std::fwrite(line.data(), 1, line.size(), stdout);
       ++received;
     });
   } else {
     std::vector<std::string> channels;
-    for (auto k : sub::kAllKinds) channels.push_back(sub::channel_name(opt.prefix, k));
+    for (auto k : msg::kAllKinds) channels.push_back(msg::channel_name(opt.prefix, k));
     if (!kind) channels.push_back(channel);
     for (const auto& c : channels) {
-      subscriber.subscribe(c, std::nullopt, [&, c](const sub::Received& r) {
-        table.on(r, sub::now_mono_ns());
+      subscriber.subscribe(c, std::nullopt, [&, c](const msg::Received& r) {
+        table.on(r, mono_now_ns());
         if (c == channel) ++received;
       });
     }
     std::fputs("\x1b[?25l", stdout);  // hide the cursor while redrawing
   }
 
-  const int64_t start = sub::now_mono_ns();
+  const int64_t start = mono_now_ns();
   const int64_t end = opt.duration > 0 ? start + static_cast<int64_t>(opt.duration * 1e9) : 0;
   constexpr int64_t kRefreshNs = 100'000'000;
   int64_t next_draw = start;
@@ -243,7 +247,7 @@ int run_echo(const EchoOptions& opt) {
   int rc = kExitOk;
   while (!g_stop) {
     if (opt.count > 0 && received >= opt.count) break;
-    int64_t now = sub::now_mono_ns();
+    int64_t now = mono_now_ns();
     if (end && now >= end) {
       if (opt.count > 0 && received < opt.count) {
         std::fprintf(stderr, "exodaq echo: %lld of %lld messages on %s within %g s\n",
@@ -266,14 +270,14 @@ int run_echo(const EchoOptions& opt) {
       rc = kExitFailure;
       break;
     }
-    now = sub::now_mono_ns();
+    now = mono_now_ns();
     if (csv && (r == 0 || now - last_flush >= kRefreshNs)) {
       std::fflush(stdout);
       last_flush = now;
     }
   }
   if (!csv) {
-    table.render(sub::now_mono_ns());
+    table.render(mono_now_ns());
     std::fputs("\x1b[?25h", stdout);
   }
   std::fflush(stdout);

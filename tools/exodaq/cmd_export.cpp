@@ -5,8 +5,6 @@
 // reads back to the same double. The daemon's all-zero start-up messages are
 // left out. A cycle whose palm_pose_t is missing from the log keeps empty
 // palm columns. See docs/replay.md for the columns.
-#include <lcm/lcm.h>
-
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -17,33 +15,17 @@
 #include <vector>
 
 #include "command.hpp"
-#include "subscriber.hpp"
+#include "exodaq/messages/channels.hpp"
+#include "exodaq/messages/fields.hpp"
+#include "exodaq/messages/lcm_log.hpp"
+#include "exodaq/messages/message.hpp"
+#include "export_csv.hpp"
 
 namespace exodaq::tools {
 
 namespace {
 
-constexpr std::string_view kJointBase = "EXO_JOINT_STATE";
-constexpr std::string_view kPalmBase = "EXO_PALM_POSE";
 constexpr std::int64_t kJoinWindow = 4096;  // cycles a row waits for its other half
-
-bool ends_with(std::string_view s, std::string_view suffix) {
-  return s.size() >= suffix.size() && s.substr(s.size() - suffix.size()) == suffix;
-}
-
-struct EventLog {
-  explicit EventLog(const std::string& path) : log(lcm_eventlog_create(path.c_str(), "r")) {
-    if (log == nullptr) throw std::runtime_error("cannot open LCM log '" + path + "'");
-  }
-  ~EventLog() { lcm_eventlog_destroy(log); }
-  EventLog(const EventLog&) = delete;
-  EventLog& operator=(const EventLog&) = delete;
-  lcm_eventlog_t* log;
-};
-struct EventDeleter {
-  void operator()(lcm_eventlog_event_t* e) const noexcept { lcm_eventlog_free_event(e); }
-};
-using EventPtr = std::unique_ptr<lcm_eventlog_event_t, EventDeleter>;
 
 std::vector<std::string> header() {
   std::vector<std::string> h{"seq", "utime", "mono_ns", "run_id"};
@@ -68,7 +50,7 @@ struct Row {
 std::string row_text(const Row& r) {
   const auto& j = r.joint;
   const auto num = [](auto v) { return std::to_string(v); };
-  const auto dbl = [](double v) { return sub::format_double(v); };
+  const auto dbl = [](double v) { return msg::format_double(v); };
   std::vector<std::string> v{num(j.seq), num(j.utime), num(j.mono_ns), num(j.run_id)};
   for (int i = 0; i < 6; ++i) v.push_back(dbl(j.position[i]));
   for (int i = 0; i < 6; ++i) v.push_back(dbl(j.velocity[i]));
@@ -89,26 +71,22 @@ std::string row_text(const Row& r) {
   } else {
     for (int k = 0; k < 15; ++k) v.emplace_back();
   }
-  return sub::csv_line(v);
+  return msg::csv_line(v);
 }
 
 }  // namespace
 
-// Shared with `exodaq plot`. Returns the number of rows written; fills
-// joint_names from the first joint_state_t. Throws std::runtime_error.
-std::int64_t export_log_csv(const std::string& log_path, const std::string& prefix_option,
-                            bool prefix_given, const std::string& csv_path,
-                            std::vector<std::string>* joint_names) {
+CsvExport export_log_csv(const std::string& log_path, const std::optional<std::string>& given,
+                         const std::string& csv_path) {
+  CsvExport result;
+  std::vector<std::string>* joint_names = &result.joint_names;
   // Which prefix: the one given, or the only one the log has.
-  std::string prefix = prefix_option;
-  if (!prefix_given) {
+  std::string prefix = given.value_or("");
+  if (!given) {
     std::set<std::string> prefixes;
-    EventLog log(log_path);
-    while (EventPtr ev{lcm_eventlog_read_next_event(log.log)}) {
-      const std::string_view ch(ev->channel, static_cast<std::size_t>(ev->channellen));
-      if (ends_with(ch, kJointBase)) {
-        prefixes.insert(std::string(ch.substr(0, ch.size() - kJointBase.size())));
-      }
+    for (const auto& [channel, count] : msg::scan_channels(log_path)) {
+      const auto parts = msg::split_channel(channel);
+      if (parts && parts->kind == msg::Kind::kJointState) prefixes.insert(parts->prefix);
     }
     if (prefixes.empty()) {
       throw std::runtime_error("'" + log_path + "' has no *EXO_JOINT_STATE channel");
@@ -121,14 +99,14 @@ std::int64_t export_log_csv(const std::string& log_path, const std::string& pref
     }
     prefix = *prefixes.begin();
   }
-  const std::string joint_channel = prefix + std::string(kJointBase);
-  const std::string palm_channel = prefix + std::string(kPalmBase);
+  const std::string joint_channel = msg::channel_name(prefix, msg::Kind::kJointState);
+  const std::string palm_channel = msg::channel_name(prefix, msg::Kind::kPalmPose);
 
   std::ofstream out(csv_path, std::ios::binary);
   if (!out) throw std::runtime_error("cannot create '" + csv_path + "'");
-  out << sub::csv_line(header()) << "\n";
+  out << msg::csv_line(header()) << "\n";
 
-  std::int64_t rows = 0;
+  std::int64_t& rows = result.rows;
   std::int64_t run_id = 0;
   std::map<std::int64_t, Row> pending;  // by seq, this run
   const auto flush_until = [&](std::int64_t seq_limit) {
@@ -141,23 +119,24 @@ std::int64_t export_log_csv(const std::string& log_path, const std::string& pref
       pending.erase(pending.begin());
     }
   };
-  EventLog log(log_path);
+  msg::LogReader log(log_path);
+  msg::LogEvent ev;
   joint_state_t js;
   palm_pose_t pp;
-  while (EventPtr ev{lcm_eventlog_read_next_event(log.log)}) {
-    const std::string_view ch(ev->channel, static_cast<std::size_t>(ev->channellen));
+  while (log.next(ev)) {
+    const std::string_view ch = ev.channel;
     std::int64_t seq = 0;
     std::int64_t rid = 0;
     const bool is_joint = ch == joint_channel;
     if (is_joint) {
-      if (js.decode(ev->data, 0, ev->datalen) < 0 || js.utime == 0) continue;
+      if (!msg::decode_into(js, ev.data, ev.size) || js.utime == 0) continue;
       seq = js.seq;
       rid = js.run_id;
-      if (joint_names != nullptr && joint_names->empty()) {
+      if (joint_names->empty()) {
         for (int i = 0; i < 6; ++i) joint_names->push_back(js.name[i]);
       }
     } else if (ch == palm_channel) {
-      if (pp.decode(ev->data, 0, ev->datalen) < 0 || pp.utime == 0) continue;
+      if (!msg::decode_into(pp, ev.data, ev.size) || pp.utime == 0) continue;
       seq = pp.seq;
       rid = pp.run_id;
     } else {
@@ -180,7 +159,8 @@ std::int64_t export_log_csv(const std::string& log_path, const std::string& pref
   flush_until(INT64_MAX);
   out.flush();
   if (!out) throw std::runtime_error("error writing '" + csv_path + "'");
-  return rows;
+  result.damage = log.damage_text();
+  return result;
 }
 
 namespace {
@@ -200,10 +180,14 @@ std::function<int()> setup_export(CLI::App& sub) {
   auto* prefix =
       sub.add_option("--prefix", o->prefix, "channel prefix (default: the only one in the log)");
   return [o, prefix] {
-    const std::int64_t rows =
-        export_log_csv(o->log, o->prefix, prefix->count() > 0, o->csv, nullptr);
-    std::printf("exodaq export: %lld rows -> %s\n", static_cast<long long>(rows), o->csv.c_str());
-    return rows > 0 ? kExitOk : kExitFailure;
+    const CsvExport r = export_log_csv(
+        o->log, prefix->count() > 0 ? std::optional(o->prefix) : std::nullopt, o->csv);
+    std::printf("exodaq export: %lld rows -> %s\n", static_cast<long long>(r.rows), o->csv.c_str());
+    if (!r.damage.empty()) {
+      std::fprintf(stderr, "exodaq export: %s\n", r.damage.c_str());
+      return kExitFailure;
+    }
+    return r.rows > 0 ? kExitOk : kExitFailure;
   };
 }
 

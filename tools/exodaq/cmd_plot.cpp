@@ -19,15 +19,11 @@
 #include <vector>
 
 #include "command.hpp"
+#include "export_csv.hpp"
 
 extern char** environ;
 
 namespace exodaq::tools {
-
-// cmd_export.cpp
-std::int64_t export_log_csv(const std::string& log_path, const std::string& prefix_option,
-                            bool prefix_given, const std::string& csv_path,
-                            std::vector<std::string>* joint_names);
 
 namespace {
 
@@ -92,9 +88,11 @@ int run_child(const std::vector<std::string>& args) {
 int run_plot(const PlotOptions& o) {
   std::filesystem::create_directories(o.out);
   const std::string csv = o.out + "/cycles.csv";
-  std::vector<std::string> names;
-  const std::int64_t rows = export_log_csv(o.log, o.prefix, o.prefix_given, csv, &names);
-  if (rows == 0) {
+  const CsvExport exported =
+      export_log_csv(o.log, o.prefix_given ? std::optional(o.prefix) : std::nullopt, csv);
+  const std::vector<std::string>& names = exported.joint_names;
+  if (!exported.damage.empty()) std::fprintf(stderr, "exodaq plot: %s\n", exported.damage.c_str());
+  if (exported.rows == 0) {
     std::fprintf(stderr, "exodaq plot: '%s' has no joint_state_t message\n", o.log.c_str());
     return kExitFailure;
   }

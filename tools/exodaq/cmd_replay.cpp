@@ -9,9 +9,7 @@
 // at its recorded instant: at --speed max nothing sleeps, otherwise cycle k
 // starts (recorded_k - recorded_0) / speed after the first. The output does
 // not depend on the speed: same input, config and calibration, same bytes.
-#include <lcm/lcm.h>
 #include <signal.h>
-#include <stdio_ext.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -27,13 +25,15 @@
 #include <string>
 
 #include "command.hpp"
+#include "exodaq/common/clock_now.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
 #include "exodaq/core/publisher.hpp"
 #include "exodaq/drivers/replay_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
-#include "exodaq/status_t.hpp"
+#include "exodaq/messages/lcm_log.hpp"
+#include "exodaq/messages/message.hpp"
 
 namespace exodaq::tools {
 namespace {
@@ -42,12 +42,6 @@ std::atomic<bool> g_interrupted{false};
 
 void on_interrupt(int /*sig*/) {
   g_interrupted.store(true);
-}
-
-std::int64_t mono_now() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
 void sleep_until(std::int64_t deadline_ns) {
@@ -60,15 +54,7 @@ void sleep_until(std::int64_t deadline_ns) {
 }
 
 std::int64_t thread_cpu_now() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
-std::int64_t be64(const std::uint8_t* p) {
-  std::uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v = (v << 8) | p[i];
-  return static_cast<std::int64_t>(v);
+  return clock_ns(CLOCK_THREAD_CPUTIME_ID);
 }
 
 // Writes every published message to an LCM log file, as lcm-logger would
@@ -78,21 +64,7 @@ std::int64_t be64(const std::uint8_t* p) {
 // deterministic values: mono_ns = the last cycle's, work_* = 0.
 class LcmLogSink final : public core::MessageSink {
  public:
-  explicit LcmLogSink(const std::string& path)
-      : path_(path), log_(lcm_eventlog_create(path.c_str(), "w")) {
-    if (log_ == nullptr) {
-      throw std::runtime_error("cannot create '" + path + "': " + std::strerror(errno));
-    }
-    std::setvbuf(log_->f, nullptr, _IOFBF, 1 << 20);
-    // Only the publishing thread writes it, and LCM writes field by field:
-    // skip stdio's per-call locking.
-    __fsetlocking(log_->f, FSETLOCKING_BYCALLER);
-  }
-  ~LcmLogSink() override {
-    if (log_ != nullptr) lcm_eventlog_destroy(log_);
-  }
-  LcmLogSink(const LcmLogSink&) = delete;
-  LcmLogSink& operator=(const LcmLogSink&) = delete;
+  explicit LcmLogSink(const std::string& path) : log_(path) {}
 
   // Messages before arm() (the Acquisition's start-up encoder warm-up) are dropped.
   void arm() noexcept { armed_ = true; }
@@ -100,56 +72,52 @@ class LcmLogSink final : public core::MessageSink {
   bool publish(const std::string& channel, const core::OutgoingMessage& msg) noexcept override {
     if (!armed_) return true;
     const std::uint8_t* data = msg.bytes.data();
-    int size = static_cast<int>(msg.size);
+    std::size_t size = msg.size;
+    if (msg.channel == msg::Kind::kJointState) {
+      if (!msg::decode_into(joint_, data, size)) return false;
+      last_mono_ns_ = joint_.mono_ns;
+    } else if (msg.channel == msg::Kind::kPalmPose) {
+      if (!msg::decode_into(palm_, data, size)) return false;
+      ++palm_messages_;
+      if (palm_.valid) ++valid_;
+    } else if (msg.channel == msg::Kind::kStatus) {
+      if (!msg::decode_into(status_, data, size)) return false;
+      status_.mono_ns = last_mono_ns_;
+      status_.work_p50_us = status_.work_p99_us = status_.work_max_us = 0.0;
+      const int n = status_.encode(buffer_.data(), 0, static_cast<int>(buffer_.size()));
+      if (n < 0) return false;
+      data = buffer_.data();
+      size = static_cast<std::size_t>(n);
+    }
     try {
-      if (msg.channel == core::ChannelId::kJointState && size >= 24) {
-        last_mono_ns_ = be64(data + 16);
-      } else if (msg.channel == core::ChannelId::kPalmPose && size > 40) {
-        ++palm_;
-        if (data[40] != 0) ++valid_;
-      } else if (msg.channel == core::ChannelId::kStatus) {
-        if (status_.decode(data, 0, size) < 0) return false;
-        status_.mono_ns = last_mono_ns_;
-        status_.work_p50_us = status_.work_p99_us = status_.work_max_us = 0.0;
-        const int n = status_.encode(buffer_.data(), 0, static_cast<int>(buffer_.size()));
-        if (n < 0) return false;
-        data = buffer_.data();
-        size = n;
-      }
-    } catch (...) {
+      log_.write(channel, msg.utime_us, data, size);
+    } catch (const std::exception& e) {
+      if (error_.empty()) error_ = e.what();
       return false;
     }
-    lcm_eventlog_event_t ev{};
-    ev.timestamp = msg.utime_us;
-    ev.channellen = static_cast<std::int32_t>(channel.size());
-    ev.datalen = size;
-    ev.channel = const_cast<char*>(channel.c_str());
-    ev.data = const_cast<std::uint8_t*>(data);
-    if (lcm_eventlog_write_event(log_, &ev) != 0) return false;
-    ++written_;
     return true;
   }
 
-  // Flushes and reports a write error (disk full...) as an exception.
+  // Flushes and reports the first write error (disk full...) as an exception.
   void finish() {
-    if (std::fflush(log_->f) != 0 || std::ferror(log_->f) != 0) {
-      throw std::runtime_error("error writing '" + path_ + "': " + std::strerror(errno));
-    }
+    if (!error_.empty()) throw std::runtime_error(error_);
+    log_.close();
   }
 
-  std::int64_t written() const noexcept { return written_; }
-  std::int64_t palm_messages() const noexcept { return palm_; }
+  std::int64_t written() const noexcept { return log_.events(); }
+  std::int64_t palm_messages() const noexcept { return palm_messages_; }
   std::int64_t valid_palm() const noexcept { return valid_; }
 
  private:
-  std::string path_;
-  lcm_eventlog_t* log_;
+  msg::LogWriter log_;
   bool armed_ = false;
   std::int64_t last_mono_ns_ = 0;
-  std::int64_t written_ = 0;
-  std::int64_t palm_ = 0;
+  std::int64_t palm_messages_ = 0;
   std::int64_t valid_ = 0;
-  exodaq::status_t status_;
+  std::string error_;
+  joint_state_t joint_;
+  palm_pose_t palm_;
+  status_t status_;
   std::array<std::uint8_t, core::kMaxMessageBytes> buffer_{};
 };
 
@@ -167,14 +135,11 @@ struct ReplayOptions {
 };
 
 // The daemon's own loop settings, switched to replay.
-core::AcquisitionConfig acquisition_config(const config::ServiceConfig& c, double speed,
-                                           std::int64_t run_id) {
+core::AcquisitionConfig acquisition_config(const config::ServiceConfig& c, std::int64_t run_id) {
   core::AcquisitionConfig a = core::make_acquisition_config(c);
   a.cpu = -1;
   a.priority = 0;
   a.lock_memory = false;
-  a.replay = true;
-  a.replay_speed = speed;
   a.run_id = run_id;
   return a;
 }
@@ -222,20 +187,17 @@ int run_replay(const ReplayOptions& o) {
     cfg.calibration = config::load_calibration_file(o.calibration);
     cfg.calibration_path = o.calibration;
   }
-  drivers::SourceOptions src_opts = cfg.source;
-  src_opts.backend = drivers::SourceBackend::kReplay;
-  src_opts.replay.path = o.input;
-  src_opts.replay.format = o.format;
-  if (!o.channel.empty()) src_opts.replay.channel = o.channel;
-  src_opts.replay_speed = speed;
-
-  std::unique_ptr<drivers::EncoderSource> source =
-      drivers::make_source(src_opts, config::make_source_context(cfg));
-  auto* replay = dynamic_cast<drivers::ReplaySource*>(source.get());
-  if (replay == nullptr) throw std::logic_error("the replay backend is not a ReplaySource");
-  const std::int64_t load_start = mono_now();
+  drivers::ReplaySettings replay_settings;
+  replay_settings.path = o.input;
+  replay_settings.format = o.format;
+  if (!o.channel.empty()) replay_settings.channel = o.channel;
+  replay_settings.speed = speed;
+  auto source =
+      std::make_unique<drivers::ReplaySource>(replay_settings, config::make_source_context(cfg));
+  drivers::ReplaySource* replay = source.get();
+  const std::int64_t load_start = mono_now_ns();
   replay->start();  // loads the input; Acquisition's start() only rewinds
-  const double load_s = static_cast<double>(mono_now() - load_start) * 1e-9;
+  const double load_s = static_cast<double>(mono_now_ns() - load_start) * 1e-9;
   const drivers::ReplayLoadSummary summary = replay->summary();
 
   std::string prefix = cfg.lcm.prefix;
@@ -247,9 +209,8 @@ int run_replay(const ReplayOptions& o) {
 
   auto sink_owner = std::make_unique<LcmLogSink>(o.out);
   LcmLogSink* sink = sink_owner.get();
-  core::Acquisition acq(acquisition_config(cfg, speed, summary.run_id),
-                        core::make_pipeline_config(cfg), std::move(source), std::move(sink_owner),
-                        prefix, nullptr);
+  core::Acquisition acq(acquisition_config(cfg, summary.run_id), core::make_pipeline_config(cfg),
+                        std::move(source), std::move(sink_owner), prefix, nullptr);
   acq.prepare_for_manual_cycles();
   sink->arm();
 
@@ -264,7 +225,7 @@ int run_replay(const ReplayOptions& o) {
   std::int64_t cycles = 0;
   std::int64_t last_t = 0;
   std::int64_t first_recorded = -1;
-  const std::int64_t run_start = mono_now();
+  const std::int64_t run_start = mono_now_ns();
   const std::int64_t cpu_start = thread_cpu_now();
   while (!g_interrupted.load(std::memory_order_relaxed)) {
     const std::int64_t next = replay->next_sample_mono_ns();
@@ -283,16 +244,16 @@ int run_replay(const ReplayOptions& o) {
       acq.publisher().drain();
       while (acq.pop_event(event)) {
       }
-      if ((cycles & 1023) == 0 || speed > 0.0) progress.update(cycles, mono_now());
+      if ((cycles & 1023) == 0 || speed > 0.0) progress.update(cycles, mono_now_ns());
     }
   }
   acq.stop();  // final status
   acq.publisher().drain();
   while (acq.pop_event(event)) {
   }
-  const double run_s = static_cast<double>(mono_now() - run_start) * 1e-9;
+  const double run_s = static_cast<double>(mono_now_ns() - run_start) * 1e-9;
   const double cpu_s = static_cast<double>(thread_cpu_now() - cpu_start) * 1e-9;
-  progress.update(cycles, mono_now(), true);
+  progress.update(cycles, mono_now_ns(), true);
   progress.end();
   sink->finish();
 

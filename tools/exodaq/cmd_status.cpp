@@ -6,14 +6,18 @@
 #include <string>
 
 #include "command.hpp"
-#include "subscriber.hpp"
+#include "exodaq/common/clock_now.hpp"
+#include "exodaq/messages/channels.hpp"
+#include "exodaq/messages/fields.hpp"
+#include "exodaq/messages/flag_names.hpp"
+#include "exodaq/messages/subscriber.hpp"
 
 namespace exodaq::tools {
 namespace {
 
 struct StatusOptions {
   std::string prefix;
-  std::string url = sub::kDefaultUrl;
+  std::string url = msg::kDefaultUrl;
   double timeout = 3.0;  // s; status comes at 10 Hz
 };
 
@@ -33,7 +37,7 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
   auto ll = [](int64_t v) { return static_cast<long long>(v); };
   std::printf("%s  rig '%s'  source %s  run %016llx\n", channel.c_str(), s.rig.c_str(),
               s.source.c_str(), static_cast<unsigned long long>(s.run_id));
-  std::printf("state    %s  \"%s\"\n", std::string(sub::state_name(s.state)).c_str(),
+  std::printf("state    %s  \"%s\"\n", std::string(msg::state_name(s.state)).c_str(),
               s.message.c_str());
   std::printf("time     %s  (received %.3f s later)  seq %lld  cycles %lld\n",
               utc_time(s.utime).c_str(), static_cast<double>(recv_utime - s.utime) * 1e-6,
@@ -48,7 +52,7 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
   std::printf("         %-9s %10.1f %10.1f %10.1f\n", "work", s.work_p50_us, s.work_p99_us,
               s.work_max_us);
   std::printf("source   bus %s  board errors 0x%x  frames %lld  bad %lld  missing %lld\n",
-              std::string(sub::bus_state_name(s.bus_state)).c_str(),
+              std::string(msg::bus_state_name(s.bus_state)).c_str(),
               static_cast<unsigned>(s.board_errors), ll(s.frames), ll(s.bad_frames),
               ll(s.missing_samples));
   std::printf(
@@ -64,22 +68,22 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
               "range", "flags (window)");
   for (int i = 0; i < 6; ++i) {
     std::printf("%-20s %-9s %8lld %8lld %8lld %8lld  %s\n", s.joint_name[i].c_str(),
-                std::string(sub::homing_name(s.homing[i])).c_str(), ll(s.glitches[i]),
+                std::string(msg::homing_name(s.homing[i])).c_str(), ll(s.glitches[i]),
                 ll(s.lost_count_events[i]), ll(s.stale_events[i]), ll(s.out_of_range_events[i]),
-                sub::joint_flag_names(s.joint_flags[i]).c_str());
+                msg::joint_flag_names(s.joint_flags[i]).c_str());
   }
 }
 
 int run_status(const StatusOptions& opt) {
-  const std::string channel = sub::channel_name(opt.prefix, sub::Kind::kStatus);
-  sub::Subscriber subscriber(opt.url);
-  std::optional<sub::Received> got;
-  subscriber.subscribe(channel, sub::Kind::kStatus, [&](const sub::Received& r) {
+  const std::string channel = msg::channel_name(opt.prefix, msg::Kind::kStatus);
+  msg::Subscriber subscriber(opt.url);
+  std::optional<msg::Received> got;
+  subscriber.subscribe(channel, msg::Kind::kStatus, [&](const msg::Received& r) {
     if (!got) got = r;
   });
-  const int64_t end = sub::now_mono_ns() + static_cast<int64_t>(opt.timeout * 1e9);
+  const int64_t end = mono_now_ns() + static_cast<int64_t>(opt.timeout * 1e9);
   while (!got) {
-    const int64_t left = end - sub::now_mono_ns();
+    const int64_t left = end - mono_now_ns();
     if (left <= 0) break;
     const int r = subscriber.handle(static_cast<int>(std::max<int64_t>(1, left / 1'000'000)));
     if (r < 0) {

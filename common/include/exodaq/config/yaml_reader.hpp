@@ -54,6 +54,8 @@ class MapReader {
 
   std::string string(const std::string& key);
   std::string string_or(const std::string& key, const std::string& fallback);
+  // A file path, as written or, when relative, relative to this file's folder.
+  std::string path(const std::string& key);
   double number(const std::string& key);  // finite double
   double number_or(const std::string& key, double fallback);
   std::int64_t integer(const std::string& key);

@@ -34,10 +34,6 @@ struct AcquisitionConfig {
   int status_every_cycles = 100;      // 10 Hz at 1 kHz
   int clean_windows_to_recover = 10;  // degraded -> running after this many clean windows
   bool publish_raw = true;
-  // Replay: timestamps come from the recording, the loop is paced by it
-  // (speed > 0: that many times real time) or runs flat out (speed <= 0).
-  bool replay = false;
-  double replay_speed = 1.0;
   // Replay: a fixed run_id so the same input gives byte-identical output
   // (exodaq replay passes the recording's). 0: random per start, as live.
   std::int64_t run_id = 0;
@@ -141,9 +137,13 @@ class Acquisition {
   void encode_cycle(const drivers::EncoderSample& sample) noexcept;
   void finish_window(std::int64_t now_mono) noexcept;
   template <typename Msg>
-  void encode(ChannelId channel, const Msg& msg, std::int64_t utime_us) noexcept;
+  void encode(msg::Kind channel, const Msg& msg, std::int64_t utime_us) noexcept;
 
   AcquisitionConfig config_;
+  // Replay: timestamps come from the recording, the loop is paced by it
+  // (speed > 0: that many times real time) or runs flat out (speed <= 0).
+  bool replay_ = false;
+  double replay_speed_ = 1.0;
   std::unique_ptr<PipelineConfig> active_config_;
   std::atomic<PipelineConfig*> staged_config_{nullptr};
   std::atomic<PipelineConfig*> retired_config_{nullptr};

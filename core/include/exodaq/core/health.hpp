@@ -8,16 +8,18 @@
 #include "exodaq/core/joint_tracker.hpp"
 #include "exodaq/core/pipeline.hpp"
 #include "exodaq/drivers/encoder_sample.hpp"
+#include "exodaq/wire_constants.hpp"
 
 namespace exodaq::core {
 
+// status_t's STATE_* codes.
 enum class ServiceState : std::int8_t {
-  kStarting = 0,
-  kHoming = 1,
-  kRunning = 2,
-  kDegraded = 3,
-  kFault = 4,
-  kStopping = 5,
+  kStarting = wire::status::STATE_STARTING,
+  kHoming = wire::status::STATE_HOMING,
+  kRunning = wire::status::STATE_RUNNING,
+  kDegraded = wire::status::STATE_DEGRADED,
+  kFault = wire::status::STATE_FAULT,
+  kStopping = wire::status::STATE_STOPPING,
 };
 const char* state_name(ServiceState s) noexcept;
 

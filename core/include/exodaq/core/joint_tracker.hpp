@@ -8,26 +8,33 @@
 #include <cstdint>
 
 #include "exodaq/config/service_config.hpp"
+#include "exodaq/wire_constants.hpp"
 
 namespace exodaq::core {
 
-// Same bit values as joint_state_t JOINT_*.
+// joint_state_t's JOINT_* bits (defined in lcmtypes/exodaq/joint_state_t.lcm).
 namespace joint_flag {
-inline constexpr std::uint32_t kUnhomed = 1U << 0;
-inline constexpr std::uint32_t kStale = 1U << 1;
-inline constexpr std::uint32_t kGlitch = 1U << 2;
-inline constexpr std::uint32_t kOutOfRange = 1U << 3;
-inline constexpr std::uint32_t kLostCounts = 1U << 4;
-inline constexpr std::uint32_t kHomingRejected = 1U << 5;
-inline constexpr std::uint32_t kHeld = 1U << 6;
-inline constexpr std::uint32_t kBoardError = 1U << 7;
+namespace w = wire::joint_state;
+inline constexpr std::uint32_t kUnhomed = w::JOINT_UNHOMED;
+inline constexpr std::uint32_t kStale = w::JOINT_STALE;
+inline constexpr std::uint32_t kGlitch = w::JOINT_GLITCH;
+inline constexpr std::uint32_t kOutOfRange = w::JOINT_OUT_OF_RANGE;
+inline constexpr std::uint32_t kLostCounts = w::JOINT_LOST_COUNTS;
+inline constexpr std::uint32_t kHomingRejected = w::JOINT_HOMING_REJECTED;
+inline constexpr std::uint32_t kHeld = w::JOINT_HELD;
+inline constexpr std::uint32_t kBoardError = w::JOINT_BOARD_ERROR;
 // Flags that make a joint's angle untrustworthy (kHeld alone does not: the
 // sample-level kMissing flag covers a held cycle).
 inline constexpr std::uint32_t kFaults =
     kUnhomed | kStale | kGlitch | kOutOfRange | kLostCounts | kHomingRejected | kBoardError;
 }  // namespace joint_flag
 
-enum class HomingState : std::int8_t { kUnhomed = 0, kHomed = 1, kRejected = 2 };
+// status_t's HOMING_* codes.
+enum class HomingState : std::int8_t {
+  kUnhomed = wire::status::HOMING_UNHOMED,
+  kHomed = wire::status::HOMING_HOMED,
+  kRejected = wire::status::HOMING_REJECTED,
+};
 
 // No strings here: configs are copied on the loop thread at a reload.
 struct JointTrackerConfig {

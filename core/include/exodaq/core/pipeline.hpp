@@ -16,13 +16,13 @@ namespace exodaq::core {
 
 using config::kJointCount;
 
-// Same bit values as palm_pose_t INVALID_*.
+// palm_pose_t's INVALID_* bits.
 namespace invalid_reason {
-inline constexpr std::uint32_t kUnhomed = 1U << 0;
-inline constexpr std::uint32_t kJointFault = 1U << 1;
-inline constexpr std::uint32_t kSample = 1U << 2;
-inline constexpr std::uint32_t kSource = 1U << 3;
-inline constexpr std::uint32_t kClock = 1U << 4;
+inline constexpr std::uint32_t kUnhomed = wire::palm_pose::INVALID_UNHOMED;
+inline constexpr std::uint32_t kJointFault = wire::palm_pose::INVALID_JOINT_FAULT;
+inline constexpr std::uint32_t kSample = wire::palm_pose::INVALID_SAMPLE;
+inline constexpr std::uint32_t kSource = wire::palm_pose::INVALID_SOURCE;
+inline constexpr std::uint32_t kClock = wire::palm_pose::INVALID_CLOCK;
 }  // namespace invalid_reason
 
 struct PipelineConfig {

@@ -13,19 +13,16 @@
 #include <thread>
 #include <vector>
 
-namespace exodaq::core {
+#include "exodaq/messages/channels.hpp"
 
-enum class ChannelId : std::uint8_t { kJointState = 0, kPalmPose, kEncoderRaw, kStatus };
-inline constexpr int kChannelIdCount = 4;
-// Base names; the configured prefix goes in front.
-const char* channel_base_name(ChannelId id) noexcept;
+namespace exodaq::core {
 
 // The largest message (status_t with a full 255-character message and 31-character
 // joint names) is about 1 KiB; start-up checks every message fits.
 inline constexpr std::size_t kMaxMessageBytes = 1536;
 
 struct OutgoingMessage {
-  ChannelId channel = ChannelId::kJointState;
+  msg::Kind channel = msg::Kind::kJointState;
   std::uint32_t size = 0;
   std::int64_t utime_us = 0;  // the message's sample time (log files use it as the event time)
   std::array<std::uint8_t, kMaxMessageBytes> bytes{};
@@ -71,7 +68,7 @@ class Publisher {
   std::int64_t published() const noexcept { return published_.load(std::memory_order_relaxed); }
   std::int64_t failures() const noexcept { return failures_.load(std::memory_order_relaxed); }
   std::int64_t ring_drops() const noexcept { return drops_.load(std::memory_order_relaxed); }
-  const std::string& channel_name(ChannelId id) const noexcept {
+  const std::string& channel_name(msg::Kind id) const noexcept {
     return channels_[static_cast<std::size_t>(id)];
   }
   MessageSink& sink() noexcept { return *sink_; }
@@ -81,7 +78,7 @@ class Publisher {
   bool publish_one() noexcept;
 
   std::unique_ptr<MessageSink> sink_;
-  std::array<std::string, kChannelIdCount> channels_;
+  std::array<std::string, msg::kKindCount> channels_;
   std::vector<OutgoingMessage> slots_;
   std::size_t mask_;
   alignas(64) std::atomic<std::uint64_t> head_{0};  // written by the loop

@@ -4,24 +4,28 @@
 #include <array>
 #include <cstdint>
 
+#include "exodaq/wire_constants.hpp"
+
 namespace exodaq::drivers {
 
 inline constexpr int kChannelCount = 6;
 
-// Cycle-level flags a source raises. Same bit values as joint_state_t SAMPLE_*,
-// so they pass straight into the published messages.
+// Cycle-level flags: joint_state_t's SAMPLE_* bits (lcmtypes/exodaq/joint_state_t.lcm
+// says what each means), so they pass straight into the published messages.
+// Sources raise most; the clock and LATE bits are the loop's.
 namespace sample_flag {
-inline constexpr std::uint32_t kMissing = 1U << 0;      // nothing arrived for this cycle
-inline constexpr std::uint32_t kSeqGap = 1U << 1;       // board sequence skipped before this sample
-inline constexpr std::uint32_t kDuplicate = 1U << 2;    // a repeated board sequence was dropped
-inline constexpr std::uint32_t kOutOfOrder = 1U << 3;   // an older board sequence was dropped
-inline constexpr std::uint32_t kBoardError = 1U << 4;   // heartbeat reports error bits
-inline constexpr std::uint32_t kBusError = 1U << 5;     // error frame, bus-off, interface down
-inline constexpr std::uint32_t kClockStep = 1U << 6;    // set by the daemon's clock, not sources
-inline constexpr std::uint32_t kClockUnsync = 1U << 7;  // set by the daemon's clock, not sources
-inline constexpr std::uint32_t kLate = 1U << 8;         // set by the loop, not sources
-inline constexpr std::uint32_t kPartial = 1U << 9;      // only one of COUNTS_A / COUNTS_B arrived
-inline constexpr std::uint32_t kReplay = 1U << 10;      // produced offline
+namespace w = wire::joint_state;
+inline constexpr std::uint32_t kMissing = w::SAMPLE_MISSING;
+inline constexpr std::uint32_t kSeqGap = w::SAMPLE_SEQ_GAP;
+inline constexpr std::uint32_t kDuplicate = w::SAMPLE_DUPLICATE;
+inline constexpr std::uint32_t kOutOfOrder = w::SAMPLE_OUT_OF_ORDER;
+inline constexpr std::uint32_t kBoardError = w::SAMPLE_BOARD_ERROR;
+inline constexpr std::uint32_t kBusError = w::SAMPLE_BUS_ERROR;
+inline constexpr std::uint32_t kClockStep = w::SAMPLE_CLOCK_STEP;
+inline constexpr std::uint32_t kClockUnsync = w::SAMPLE_CLOCK_UNSYNC;
+inline constexpr std::uint32_t kLate = w::SAMPLE_LATE;
+inline constexpr std::uint32_t kPartial = w::SAMPLE_PARTIAL;
+inline constexpr std::uint32_t kReplay = w::SAMPLE_REPLAY;
 }  // namespace sample_flag
 
 struct EncoderSample {
@@ -41,7 +45,15 @@ struct EncoderSample {
   std::uint32_t flags = 0;  // sample_flag bits
 };
 
-enum class BusState : std::int8_t { kUnknown = 0, kActive, kWarning, kPassive, kOff, kDown };
+// status_t's BUS_* codes.
+enum class BusState : std::int8_t {
+  kUnknown = wire::status::BUS_UNKNOWN,
+  kActive = wire::status::BUS_ACTIVE,
+  kWarning = wire::status::BUS_WARNING,
+  kPassive = wire::status::BUS_PASSIVE,
+  kOff = wire::status::BUS_OFF,
+  kDown = wire::status::BUS_DOWN,
+};
 
 // Counters since start; values only grow. Copied out at 10 Hz for the status.
 struct SourceStats {

@@ -3,6 +3,7 @@
 // daemon's loop talks to this interface only, so tests inject fakes.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -39,6 +40,11 @@ class EncoderSource {
   // allocate, block or log. Fills `out` for this cycle.
   virtual ReadStatus read(const CycleTime& time, EncoderSample& out) noexcept = 0;
 
+  // Sources that play a recording carry its time: utime and seq come from
+  // it, and it paces the loop at this speed (x real time; <= 0 as fast as
+  // possible). Live sources: nullopt (paced by the loop clock).
+  virtual std::optional<double> recording_speed() const noexcept { return std::nullopt; }
+
   // For replay: the mono_ns at which the next sample is due, so the loop can be
   // paced by the recording. Live sources return -1 (paced by the loop clock).
   virtual std::int64_t next_sample_mono_ns() const noexcept { return -1; }
@@ -50,8 +56,7 @@ class EncoderSource {
 
   virtual SourceStats stats() const noexcept = 0;
 
-  // Live sources with a bus: whether the daemon should send SYNC this cycle is
-  // the backend's business; write() is for that (sim ignores it).
+  // Closes devices; called after the loop has stopped.
   virtual void stop() noexcept {}
 };
 

@@ -12,6 +12,8 @@
 #include <array>
 #include <cstdint>
 #include <numbers>
+#include <span>
+#include <string_view>
 #include <vector>
 
 #include "exodaq/drivers/can_codec.hpp"
@@ -276,6 +278,15 @@ struct SimFault {
   double percent = 0.0;         // kDrop
   std::uint8_t error_bits = 0;  // kBoardError
 };
+
+// The fault vocabulary, one list for every simulator: the name each kind has
+// in a config (source.sim.faults[].kind) and for exodaq-board-sim.
+struct SimFaultName {
+  SimFault::Kind kind;
+  std::string_view name;
+};
+std::span<const SimFaultName> sim_fault_names() noexcept;
+std::string_view sim_fault_name(SimFault::Kind kind) noexcept;
 
 struct SimOptions {
   std::uint64_t seed = 1;              // seeds motion, jitter, loss; same seed → same stream

@@ -83,10 +83,6 @@ struct SocketCanDetail {
   std::int64_t offset_ns = 0;  // CLOCK_REALTIME − CLOCK_MONOTONIC in use
 };
 
-// The backend's configuration from the service config's source.socketcan.
-SocketCanSourceConfig socketcan_config_from(const SocketCanSettings& settings,
-                                            const SourceContext& context);
-
 class SocketCanSource final : public EncoderSource {
  public:
   SocketCanSource(const SocketCanSourceConfig& config, std::unique_ptr<CanPort> port);

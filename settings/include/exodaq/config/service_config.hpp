@@ -10,6 +10,7 @@
 
 #include "exodaq/config/calibration_file.hpp"
 #include "exodaq/config/model_file.hpp"
+#include "exodaq/drivers/backend.hpp"
 #include "exodaq/drivers/source_options.hpp"
 
 namespace exodaq::config {

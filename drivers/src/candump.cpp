@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "exodaq/drivers/replay_source.hpp"
+#include "exodaq/drivers/candump.hpp"
 
 namespace exodaq::drivers {
 

@@ -26,49 +26,22 @@
 // recorded instant of the next sample, so the loop can be paced by the
 // recording or run flat out. Same file in, same samples out.
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "exodaq/drivers/board_decoder.hpp"
-#include "exodaq/drivers/can_codec.hpp"
+#include "exodaq/drivers/candump.hpp"
 #include "exodaq/drivers/encoder_source.hpp"
+#include "exodaq/drivers/replay_backend.hpp"
 #include "exodaq/drivers/source_options.hpp"
 
 namespace exodaq::drivers {
 
-// ---------------------------------------------------------------------------
-// candump text
-// ---------------------------------------------------------------------------
-
-enum class CandumpError : std::uint8_t {
-  kNone = 0,
-  kBlank,      // empty or whitespace-only line (skipped, not an error)
-  kTimestamp,  // no "(seconds.micros)" at the start
-  kInterface,  // no interface name after the timestamp
-  kId,         // identifier: not 3 or 8 hex digits, or flag bits that cannot be there
-  kSeparator,  // no '#' / '##' after the identifier
-  kData,       // odd number of hex digits, a non-hex character, or misplaced '.'
-  kLength,     // more bytes than the frame type allows, or a bad RTR length / len8_dlc
-  kFdFlags,    // CAN FD '##' without a hex flags digit
-  kTrailing,   // something after the frame that candump does not write
-};
-
-std::string_view to_string(CandumpError e) noexcept;
-
-// Parses one line of a candump log file. On kNone `out` holds the frame with
-// wall_ns = mono_ns = the line's timestamp in ns (microsecond resolution).
-// Understood: standard (3 hex digits) and extended (8 hex digits) IDs, error
-// frames (8 digits with CAN_ERR_FLAG 0x20000000 set: kError, id = error
-// classes), RTR ("#R", "#R5"), data with optional '.' separators and the
-// optional "_<dlc>" len8_dlc suffix, CAN FD ("##<flags><data>", up to 64
-// bytes; bytes beyond 8 are not kept), and the optional trailing " R"/" T"
-// direction of newer candump versions. Pure and allocation-free: safe to fuzz.
-CandumpError parse_candump_line(std::string_view line, can::CanFrame& out) noexcept;
-
-// ---------------------------------------------------------------------------
-// The source
-// ---------------------------------------------------------------------------
+namespace replay {
+struct Recording;
+}  // namespace replay
 
 enum class ReplayFormat : std::uint8_t { kLcm, kCandump };
 
@@ -100,6 +73,7 @@ class ReplaySource final : public EncoderSource {
   // map (to read recorded per-joint flags). Throws std::runtime_error for an
   // unknown format name; the file is opened in start().
   ReplaySource(const ReplaySettings& settings, const SourceContext& context);
+  ~ReplaySource() override;
 
   std::string_view name() const noexcept override { return "replay"; }
   // Loads and decodes the whole input (idempotent: a second call does not
@@ -107,15 +81,16 @@ class ReplaySource final : public EncoderSource {
   // error that prevents a replay (unreadable, no raw channel, no sample).
   void start() override;
   ReadStatus read(const CycleTime& time, EncoderSample& out) noexcept override;
+  std::optional<double> recording_speed() const noexcept override { return settings_.speed; }
   std::int64_t next_sample_mono_ns() const noexcept override;
   std::int64_t recorded_seq() const noexcept override { return last_seq_; }
   SourceStats stats() const noexcept override { return stats_; }
 
   // After start().
-  const ReplayLoadSummary& summary() const noexcept { return summary_; }
-  const std::vector<ReplayIssue>& issues() const noexcept { return issues_; }
-  std::int64_t run_id() const noexcept { return summary_.run_id; }
-  std::int64_t sample_count() const noexcept { return static_cast<std::int64_t>(entries_.size()); }
+  const ReplayLoadSummary& summary() const noexcept;
+  const std::vector<ReplayIssue>& issues() const noexcept;
+  std::int64_t run_id() const noexcept { return summary().run_id; }
+  std::int64_t sample_count() const noexcept;
   std::int64_t position() const noexcept { return static_cast<std::int64_t>(next_); }
 
   // "lcm" or "candump" from the file's first bytes (the LCM log magic or a
@@ -123,23 +98,12 @@ class ReplaySource final : public EncoderSource {
   static ReplayFormat detect_format(const std::string& path);
 
  private:
-  struct Entry {
-    EncoderSample sample;
-    std::int64_t seq = -1;  // recorded seq (lcm); -1: the loop counts (candump)
-  };
-  void load_lcm();
-  void load_candump();
-
   ReplaySettings settings_;
   SourceContext context_;
-  bool loaded_ = false;
-  std::vector<Entry> entries_;
+  std::unique_ptr<replay::Recording> recording_;
   std::size_t next_ = 0;
   std::int64_t last_seq_ = -1;
   SourceStats stats_{};
-  SourceStats loaded_stats_{};  // stats at the end of the input (frames, bad frames, ...)
-  ReplayLoadSummary summary_{};
-  std::vector<ReplayIssue> issues_;
 };
 
 }  // namespace exodaq::drivers

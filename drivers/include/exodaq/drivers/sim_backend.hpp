@@ -1,0 +1,36 @@
+#pragma once
+// The `sim` backend: the simulated rig as the configuration describes it.
+// Shared by the backend and the board-simulator process (tools/board-sim), so
+// both put the same frames on their bus for the same config: encoders on the
+// configured channels with the configured direction and gearing, each index
+// at the calibration's delta_theta0, powering up at the model's home posture.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "exodaq/drivers/backend.hpp"
+#include "exodaq/drivers/sim_rig.hpp"
+
+namespace exodaq::drivers {
+
+// source.sim
+struct SimSourceSettings final : BackendSettings {
+  std::uint64_t seed = 1;                // motion and fault randomness; same seed, same stream
+  double loss_percent = 0.0;             // samples dropped at random (deterministic for a seed)
+  double jitter_us = 0.0;                // sample-instant jitter (uniform, +/-)
+  std::uint16_t powerup_count = 0x1234;  // counter value at power-up on every channel
+  std::vector<sim::SimFault> faults;     // scripted faults (sim_rig.hpp)
+  std::string describe() const override;
+};
+
+const Backend& sim_backend();
+
+sim::SimOptions sim_options_from(const SimSourceSettings& settings, const SourceContext& context);
+// The config's sim section (defaults when it has none).
+sim::SimOptions sim_options_from(const SourceOptions& options, const SourceContext& context);
+
+// One scripted fault from its YAML mapping (source.sim.faults[i], or a
+// board simulator's fault file). Throws config::ConfigError.
+sim::SimFault parse_sim_fault(config::MapReader& m);
+
+}  // namespace exodaq::drivers

@@ -1,0 +1,257 @@
+// Replay of lcm-logger logs: the encoder_raw_t channel is the source of truth;
+// the recorded joint_state_t of the same cycle adds what only the loop knew
+// (LATE, clock bits, which channels a PARTIAL sample really had).
+#include <array>
+#include <climits>
+#include <cstdio>
+#include <map>
+#include <stdexcept>
+
+#include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/joint_state_t.hpp"
+#include "exodaq/messages/channels.hpp"
+#include "exodaq/messages/lcm_log.hpp"
+#include "exodaq/messages/message.hpp"
+#include "exodaq/messages/raw_sample.hpp"
+#include "recording.hpp"
+
+namespace exodaq::drivers::replay {
+
+namespace {
+
+// Bits the loop (not the source) adds to a live sample; the raw channel does
+// not carry them, the recorded joint_state_t does.
+constexpr std::uint32_t kLoopFlags =
+    sample_flag::kLate | sample_flag::kClockStep | sample_flag::kClockUnsync;
+
+// What a recorded joint_state_t tells about its cycle that the raw message does not.
+struct LoopInfo {
+  std::int64_t seq = -1;
+  std::int64_t run_id = 0;
+  std::uint32_t sample_flags = 0;
+  std::uint32_t held_joints = 0;  // bit j: joint j carried JOINT_HELD
+};
+
+std::string join(const std::vector<std::string>& names) {
+  std::string list;
+  for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+  return list;
+}
+
+// The raw channel: the one named, or the only one ending in that name.
+std::string find_raw_channel(const std::string& path,
+                             const std::map<std::string, std::int64_t>& channels,
+                             const std::string& wanted) {
+  if (channels.count(wanted) != 0) return wanted;
+  std::vector<std::string> candidates;
+  std::vector<std::string> all;
+  for (const auto& [name, n] : channels) {
+    all.push_back(name);
+    if (name.size() >= wanted.size() &&
+        name.compare(name.size() - wanted.size(), wanted.size(), wanted) == 0) {
+      candidates.push_back(name);
+    }
+  }
+  if (candidates.size() == 1) return candidates.front();
+  if (candidates.empty()) {
+    throw std::runtime_error("replay: '" + path + "' has no channel '" + wanted +
+                             "' (nor one ending in it); channels in the log: " +
+                             (all.empty() ? std::string("none") : join(all)));
+  }
+  throw std::runtime_error("replay: '" + path + "' has several raw channels (" + join(candidates) +
+                           "); choose one with --channel");
+}
+
+class LcmLoader {
+ public:
+  LcmLoader(const ReplaySettings& settings, const SourceContext& context, Recording& out)
+      : settings_(settings), context_(context), out_(out) {}
+
+  void load();
+
+ private:
+  void on_joint_state(const msg::LogEvent& ev);
+  void on_raw(const msg::LogEvent& ev);
+  bool accept_run(std::int64_t event_number);
+  void add_loop_info(EncoderSample& s);
+  void add_partial_channels(EncoderSample& s, bool have_info, const LoopInfo& info) const;
+  void count(const EncoderSample& s);
+
+  static constexpr std::size_t kRing = 256;
+  const ReplaySettings& settings_;
+  const SourceContext& context_;
+  Recording& out_;
+  std::string raw_channel_;
+  std::string joint_channel_;
+  std::array<LoopInfo, kRing> recent_{};
+  encoder_raw_t raw_;
+  joint_state_t joint_;
+  bool have_run_ = false;
+  std::int64_t other_run_id_ = 0;
+  std::int64_t previous_seq_ = -1;
+  EncoderSample previous_{};
+  bool have_previous_ = false;
+};
+
+void LcmLoader::load() {
+  const std::string& path = settings_.path;
+  const auto channels = msg::scan_channels(path);
+  raw_channel_ = find_raw_channel(path, channels, settings_.channel);
+  ReplayLoadSummary& summary = out_.summary;
+  summary.channel = raw_channel_;
+  const auto parts = msg::split_channel(raw_channel_);
+  const bool standard_name = parts && parts->kind == msg::Kind::kEncoderRaw;
+  summary.prefix = standard_name ? parts->prefix : std::string();
+  const std::string joint = msg::channel_name(summary.prefix, msg::Kind::kJointState);
+  if (standard_name && channels.count(joint) != 0) joint_channel_ = joint;
+
+  msg::LogReader log(path);
+  msg::LogEvent ev;
+  while (log.next(ev)) {
+    ++summary.events;
+    if (!joint_channel_.empty() && ev.channel == joint_channel_) {
+      on_joint_state(ev);
+    } else if (ev.channel == raw_channel_) {
+      on_raw(ev);
+    }
+  }
+  for (const msg::LogDamage& d : log.damage()) {
+    out_.note(d.after_event + 1, "log damaged or truncated after event " +
+                                     std::to_string(d.after_event) + ": bytes " +
+                                     std::to_string(d.from) + ".." + std::to_string(d.to) +
+                                     " of '" + path + "' were not replayed");
+  }
+  summary.missing = out_.stats.missing_samples;
+  if (!have_run_) {
+    throw std::runtime_error("replay: '" + path + "' has no encoder_raw_t message on '" +
+                             raw_channel_ + "'");
+  }
+}
+
+void LcmLoader::on_joint_state(const msg::LogEvent& ev) {
+  if (!msg::decode_into(joint_, ev.data, ev.size)) return;
+  LoopInfo& slot = recent_[static_cast<std::size_t>(joint_.seq) % kRing];
+  slot.seq = joint_.seq;
+  slot.run_id = joint_.run_id;
+  slot.sample_flags = static_cast<std::uint32_t>(joint_.sample_flags);
+  slot.held_joints = 0;
+  for (int j = 0; j < 6; ++j) {
+    if ((joint_.flags[j] & joint_state_t::JOINT_HELD) != 0) {
+      slot.held_joints |= 1U << static_cast<unsigned>(j);
+    }
+  }
+}
+
+void LcmLoader::on_raw(const msg::LogEvent& ev) {
+  if (!msg::decode_into(raw_, ev.data, ev.size)) {
+    ++out_.stats.bad_frames;
+    out_.note(ev.number, "event on " + raw_channel_ + " does not decode as exodaq.encoder_raw_t");
+    return;
+  }
+  // Values no daemon writes (damaged data): a utime whose nanoseconds do not
+  // fit in int64 (after 2262), a negative or last-possible seq.
+  constexpr std::int64_t kMaxUtime = INT64_MAX / 1000;
+  if (raw_.utime > kMaxUtime || raw_.utime < -kMaxUtime || raw_.seq < 0 || raw_.seq == INT64_MAX) {
+    ++out_.stats.bad_frames;
+    out_.note(ev.number,
+              "event on " + raw_channel_ + " has an impossible utime or seq (damaged log)");
+    return;
+  }
+  if (msg::is_startup_message({raw_.utime, raw_.mono_ns, raw_.seq, raw_.run_id}) && !raw_.present) {
+    ++out_.summary.skipped_warmup;
+    return;
+  }
+  if (!accept_run(ev.number)) return;
+  Entry e;
+  e.seq = raw_.seq;
+  msg::from_encoder_raw(raw_, e.sample);
+  e.sample.flags |= sample_flag::kReplay;
+  add_loop_info(e.sample);
+  count(e.sample);
+  previous_ = e.sample;
+  have_previous_ = true;
+  previous_seq_ = raw_.seq;
+  out_.entries.push_back(e);
+}
+
+// One run is one replay: another daemon start in the same log (seq and homing
+// restart) is counted and named, not mixed in.
+bool LcmLoader::accept_run(std::int64_t event_number) {
+  if (!have_run_) {
+    have_run_ = true;
+    out_.summary.run_id = raw_.run_id;
+    return true;
+  }
+  if (raw_.run_id == out_.summary.run_id) return true;
+  if (raw_.run_id != other_run_id_) {
+    other_run_id_ = raw_.run_id;
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "the log holds another daemon run (run_id %016llx); only run %016llx "
+                  "is replayed",
+                  static_cast<unsigned long long>(raw_.run_id),
+                  static_cast<unsigned long long>(out_.summary.run_id));
+    out_.note(event_number, text);
+  }
+  ++out_.summary.skipped_other_runs;
+  return false;
+}
+
+void LcmLoader::add_loop_info(EncoderSample& s) {
+  const LoopInfo& info = recent_[static_cast<std::size_t>(raw_.seq) % kRing];
+  const bool have_info = info.seq == raw_.seq && info.run_id == raw_.run_id;
+  if (have_info) {
+    s.flags |= info.sample_flags & kLoopFlags;
+    ++out_.summary.loop_flags_from_joint_state;
+  } else if (joint_channel_.empty() && previous_seq_ >= 0 && raw_.seq > previous_seq_ + 1) {
+    // No joint_state recorded: a seq jump is the live loop skipping cycles
+    // after an overrun, and it flags the next cycle LATE.
+    s.flags |= sample_flag::kLate;
+  }
+  if (s.present && (s.flags & sample_flag::kPartial) != 0) {
+    add_partial_channels(s, have_info, info);
+  }
+}
+
+void LcmLoader::add_partial_channels(EncoderSample& s, bool have_info, const LoopInfo& info) const {
+  if (have_info) {
+    std::uint32_t fresh = 0;
+    for (std::size_t j = 0; j < context_.joints.size(); ++j) {
+      if ((info.held_joints & (1U << j)) == 0) {
+        fresh |= 1U << static_cast<unsigned>(context_.joints[j].channel);
+      }
+    }
+    s.channel_fresh = fresh & 0x3FU;
+    return;
+  }
+  // encoder_raw_t does not say which half arrived: the half whose counts
+  // moved; if neither moved, COUNTS_A (it is sent first).
+  std::uint32_t moved = 0;
+  if (have_previous_) {
+    for (unsigned c = 0; c < static_cast<unsigned>(kChannelCount); ++c) {
+      if (s.count16[c] != previous_.count16[c]) moved |= 1U << c;
+    }
+  }
+  s.channel_fresh = (moved & 0x07U) != 0 || (moved & 0x38U) == 0 ? 0x07U : 0x38U;
+}
+
+void LcmLoader::count(const EncoderSample& s) {
+  SourceStats& st = out_.stats;
+  if (!s.present) ++st.missing_samples;
+  if ((s.flags & sample_flag::kSeqGap) != 0) ++st.seq_gaps;
+  if ((s.flags & sample_flag::kBusError) != 0) ++st.bus_errors;
+  st.board_errors = s.board_errors;
+  ++st.frames;
+}
+
+}  // namespace
+
+void load_lcm(const ReplaySettings& settings, const SourceContext& context, Recording& out) {
+  try {
+    LcmLoader(settings, context, out).load();
+  } catch (const msg::LogError& e) {
+    throw std::runtime_error(std::string("replay: ") + e.what());
+  }
+}
+
+}  // namespace exodaq::drivers::replay

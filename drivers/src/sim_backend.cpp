@@ -1,0 +1,128 @@
+#include "exodaq/drivers/sim_backend.hpp"
+
+#include <sstream>
+
+#include "exodaq/drivers/sim_source.hpp"
+
+namespace exodaq::drivers {
+
+namespace {
+
+std::shared_ptr<const BackendSettings> parse_sim(config::MapReader* s, config::MapReader& /*src*/,
+                                                 bool /*selected*/) {
+  auto out = std::make_shared<SimSourceSettings>();
+  if (s == nullptr) return out;
+  const std::int64_t seed = s->integer_or("seed", static_cast<std::int64_t>(out->seed));
+  if (seed < 0) s->fail_key("seed", "source.sim.seed must be >= 0");
+  out->seed = static_cast<std::uint64_t>(seed);
+  out->loss_percent = s->number_or("loss_percent", out->loss_percent);
+  if (out->loss_percent < 0.0 || out->loss_percent > 100.0) {
+    s->fail_key("loss_percent", "source.sim.loss_percent must be between 0 and 100");
+  }
+  out->jitter_us = s->number_or("jitter_us", out->jitter_us);
+  if (out->jitter_us < 0.0 || out->jitter_us > 400.0) {
+    s->fail_key("jitter_us", "source.sim.jitter_us must be between 0 and 400");
+  }
+  const std::int64_t pc = s->integer_or("powerup_count", out->powerup_count);
+  if (pc < 0 || pc > 0xFFFF)
+    s->fail_key("powerup_count", "source.sim.powerup_count must be 0..65535");
+  out->powerup_count = static_cast<std::uint16_t>(pc);
+  if (auto faults = s->optional_child("faults")) {
+    if (!faults->IsSequence()) s->fail(*faults, "source.sim.faults must be a list");
+    for (std::size_t i = 0; i < faults->size(); ++i) {
+      config::MapReader f(s->file(), (*faults)[i], "source.sim.faults[" + std::to_string(i) + "]");
+      out->faults.push_back(parse_sim_fault(f));
+    }
+  }
+  s->finish();
+  return out;
+}
+
+std::unique_ptr<EncoderSource> make_sim(const BackendSettings& settings, const SourceContext& ctx) {
+  return std::make_unique<SimSource>(
+      sim_options_from(dynamic_cast<const SimSourceSettings&>(settings), ctx));
+}
+
+}  // namespace
+
+sim::SimFault parse_sim_fault(config::MapReader& f) {
+  std::vector<std::string> names;
+  for (const auto& n : sim::sim_fault_names()) names.emplace_back(n.name);
+  const std::string kind = f.choice("kind", names);
+  sim::SimFault fault;
+  for (const auto& n : sim::sim_fault_names()) {
+    if (n.name == kind) fault.kind = n.kind;
+  }
+  fault.start_s = f.number("at_s");
+  if (fault.start_s < 0) f.fail_key("at_s", "at_s must be >= 0");
+  fault.duration_s = f.number_or("for_s", 0.0);
+  const std::int64_t joint = f.integer_or("joint", 1);
+  if (joint < 1 || joint > sim::kJoints) f.fail_key("joint", "joint must be 1..6");
+  fault.joint = static_cast<int>(joint - 1);
+  fault.counts = f.integer_or("counts", 0);
+  fault.percent = f.number_or("percent", 0.0);
+  if (fault.percent < 0 || fault.percent > 100)
+    f.fail_key("percent", "percent must be in [0, 100]");
+  const std::int64_t bits = f.integer_or("error_bits", 0);
+  if (bits < 0 || bits > 255) f.fail_key("error_bits", "error_bits must be 0..255");
+  fault.error_bits = static_cast<std::uint8_t>(bits);
+  f.finish();
+  return fault;
+}
+
+std::string SimSourceSettings::describe() const {
+  std::ostringstream s;
+  s << "{seed: " << seed << ", loss_percent: " << loss_percent << ", jitter_us: " << jitter_us
+    << ", powerup_count: " << powerup_count;
+  if (!faults.empty()) {
+    s << ", faults: [";
+    for (std::size_t i = 0; i < faults.size(); ++i) {
+      const sim::SimFault& f = faults[i];
+      s << (i ? ", " : "") << "{kind: " << sim::sim_fault_name(f.kind) << ", at_s: " << f.start_s
+        << ", for_s: " << f.duration_s << ", joint: " << f.joint + 1 << ", counts: " << f.counts
+        << ", percent: " << f.percent << ", error_bits: " << int{f.error_bits} << "}";
+    }
+    s << "]";
+  }
+  s << "}";
+  return s.str();
+}
+
+const Backend& sim_backend() {
+  static const Backend b{"sim", parse_sim, make_sim};
+  return b;
+}
+
+sim::SimOptions sim_options_from(const SourceOptions& options, const SourceContext& ctx) {
+  if (const auto* s = options.section_as<SimSourceSettings>("sim"))
+    return sim_options_from(*s, ctx);
+  return sim_options_from(SimSourceSettings{}, ctx);
+}
+
+sim::SimOptions sim_options_from(const SimSourceSettings& settings, const SourceContext& ctx) {
+  sim::SimOptions o;
+  o.seed = settings.seed;
+  o.period_ns = ctx.period_ns;
+  o.jitter_ns = static_cast<std::int64_t>(settings.jitter_us * 1000.0);
+  o.loss_percent = settings.loss_percent;
+  o.faults = settings.faults;
+  // The simulated rig is the configured one: its encoders sit on the
+  // configured channels with the configured direction and gearing, and each
+  // index at the calibration's delta_theta0, so a homed joint reads the truth.
+  for (std::size_t j = 0; j < ctx.joints.size(); ++j) {
+    const SourceJointContext& c = ctx.joints[j];
+    auto& e = o.encoders[j];
+    e.channel = c.channel;
+    e.direction = c.direction;
+    e.counts_per_rev = ctx.counts_per_rev;
+    e.gear_ratio = c.gear_ratio;
+    e.index_angle_rad = c.index_angle_rad;
+    e.power_up_count = settings.powerup_count;
+    o.motion.home_rad[j] = c.home_rad;
+    o.motion.lower_limit_rad[j] = c.lower_rad;
+    o.motion.upper_limit_rad[j] = c.upper_rad;
+  }
+  return o;
+}
+
+}  // namespace exodaq::drivers

@@ -1,0 +1,121 @@
+#pragma once
+// LCM event logs, the format lcm-logger writes and lcm-logplayer reads: each
+// event is a 28-byte big-endian header (magic 0xEDA1DA01, event number,
+// timestamp in us, channel length, data length), the channel and the data.
+// One reader and one writer for every part of exodaq; errors name the file
+// and the byte offset. Off the loop thread only (they allocate and block).
+#include <cstdint>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace exodaq::msg {
+
+inline constexpr std::uint32_t kLcmLogMagic = 0xEDA1DA01U;
+
+// "<file>: <what>" or "<file>, byte <offset>: <what>".
+class LogError : public std::runtime_error {
+ public:
+  LogError(const std::string& file, std::int64_t offset, const std::string& what);
+  const std::string& file() const noexcept { return file_; }
+  std::int64_t offset() const noexcept { return offset_; }  // -1: not about a position
+
+ private:
+  std::string file_;
+  std::int64_t offset_;
+};
+
+// One event; the views stay valid until the reader's next call.
+struct LogEvent {
+  std::int64_t number = 0;     // the event number the logger wrote
+  std::int64_t timestamp = 0;  // us, when the logger received it
+  std::int64_t offset = 0;     // byte offset of the event's header in the file
+  std::string_view channel;
+  const std::uint8_t* data = nullptr;
+  std::size_t size = 0;
+};
+
+// A stretch of the file that holds no readable event (damage or a cut).
+struct LogDamage {
+  std::int64_t from = 0;  // byte offsets [from, to)
+  std::int64_t to = 0;
+  std::int64_t after_event = 0;  // events read before it
+};
+
+class LogReader {
+ public:
+  // Throws LogError: unreadable, not a regular file, or not an LCM log (the
+  // message shows the first bytes); an empty file is "empty file".
+  explicit LogReader(const std::string& path);
+  ~LogReader();
+  LogReader(const LogReader&) = delete;
+  LogReader& operator=(const LogReader&) = delete;
+
+  // The next complete event; false at the end of the file. Damaged bytes
+  // between events are skipped up to the next event header and recorded in
+  // damage(); a cut last event is recorded as damage too. Throws LogError on a
+  // read error.
+  bool next(LogEvent& out);
+
+  const std::vector<LogDamage>& damage() const noexcept { return damage_; }
+  // One line per damaged stretch, for summaries ("" when none).
+  std::string damage_text() const;
+  std::int64_t events() const noexcept { return events_; }
+  std::int64_t file_size() const noexcept { return size_; }
+  const std::string& path() const noexcept { return path_; }
+
+ private:
+  bool read_header(std::int64_t at);
+  bool resync(std::int64_t from);
+
+  std::string path_;
+  std::FILE* f_ = nullptr;
+  std::int64_t size_ = 0;
+  std::int64_t pos_ = 0;   // where the next event starts
+  std::int64_t tell_ = 0;  // where the FILE stands (-1: unknown)
+  std::int64_t events_ = 0;
+  std::int64_t number_ = 0;
+  std::int64_t timestamp_ = 0;
+  std::string channel_;
+  std::vector<std::uint8_t> data_;
+  std::vector<LogDamage> damage_;
+};
+
+class LogWriter {
+ public:
+  // Creates (truncates) `path`; throws LogError with errno's reason.
+  explicit LogWriter(const std::string& path);
+  ~LogWriter();  // closes; errors there are lost: call close() to see them
+  LogWriter(const LogWriter&) = delete;
+  LogWriter& operator=(const LogWriter&) = delete;
+
+  // Appends one event (numbered 0, 1, ...). Throws LogError.
+  void write(std::string_view channel, std::int64_t timestamp_us, const void* data,
+             std::size_t size);
+  // Flushes and closes; throws LogError with the reason when anything failed.
+  void close();
+  std::int64_t events() const noexcept { return number_; }
+
+ private:
+  std::string path_;
+  std::FILE* f_ = nullptr;
+  std::int64_t number_ = 0;
+};
+
+// The channels of a log and their event counts, from the headers only.
+std::map<std::string, std::int64_t> scan_channels(const std::string& path);
+
+// A whole log in memory (tests and small tools).
+struct OwnedEvent {
+  std::string channel;
+  std::vector<std::uint8_t> data;
+  std::int64_t timestamp = 0;
+};
+std::vector<OwnedEvent> read_log(const std::string& path);
+void write_log(const std::string& path, const std::vector<OwnedEvent>& events);
+
+}  // namespace exodaq::msg
