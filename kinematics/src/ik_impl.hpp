@@ -13,9 +13,10 @@ namespace exodaq::kin {
 namespace ik_detail {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-// Two postures of one branch at neighbouring grid values differ by less than this
-// (rad, largest joint); distinct branches at one value differ by more.
-constexpr double kBranchGate = 1.0;
+// Following a branch, one step may move no joint further than this (rad); the
+// step is halved until it does. Distinct solutions at one free-joint value differ
+// by more (seed 000's arm: by pi in some joint).
+constexpr double kStepGate = 0.2;
 // Solutions closer than this (rad) are one when the posture half-way is one too
 // (a double root that two starts approach from either side).
 constexpr double kMergeRadius = 1e-2;
@@ -99,8 +100,8 @@ struct IkSolver::Impl {
                          double t_bad) noexcept;
   void note_grid_posture(Branch& b, double t, const JointVector& q) noexcept;
   void refine_best(const Pose& target, Branch& b) noexcept;
-  bool track(const Pose& target, double t_from, const JointVector& q_from, double t_to,
-             JointVector& q_to) noexcept;
+  bool follow(const Pose& target, double t_from, const JointVector& q_from, double t_to,
+              JointVector& q_to) noexcept;
   void emit(const Pose& target, Branch& b) noexcept;
 };
 

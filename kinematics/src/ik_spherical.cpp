@@ -1,5 +1,7 @@
 #include "ik_spherical.hpp"
 
+#include "ik_numeric.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -59,6 +61,8 @@ std::optional<SphericalShoulderArm> SphericalShoulderArm::detect(const Chain& ch
     a.w_[i] = j.screw.omega.normalized();
     point[i] = j.screw.q;
     a.offset_[i] = j.dh.theta_offset;
+    a.lower_[i] = j.limits.lower;
+    a.upper_[i] = j.limits.upper;
     a.mid_[i] = 0.5 * (j.limits.lower + j.limits.upper);
   }
   // Shoulder centre: the point nearest axes 1-4 (least squares), on all of them.
@@ -105,6 +109,31 @@ std::optional<SphericalShoulderArm> SphericalShoulderArm::detect(const Chain& ch
   a.b_ = a.u0_.dot(a.w_[4].cross(a.w_[5]));
   if (std::hypot(a.a_, a.b_) < 1e-6) return std::nullopt;  // the elbow cannot bend
   return a;
+}
+
+// Joints i and j turn about one line (a singular posture): q_i + t, q_j - sigma t
+// is the same pose for every t. Picks the t in the middle of the range that keeps
+// both within their limits (no change when no t does).
+void SphericalShoulderArm::centre_pair(JointVector& q, int i, int j, double sigma) const noexcept {
+  const double qi = wrap_into(q[i], lower_[i], upper_[i], mid_[i]);
+  const double qj = wrap_into(q[j], lower_[j], upper_[j], mid_[j]);
+  const double lo_i = lower_[i] - qi, hi_i = upper_[i] - qi;
+  double best_lo = 0.0, best_hi = -1.0;
+  for (int m = -1; m <= 1; ++m) {
+    const double shift = kTwoPi * m;
+    // q_j - sigma t in [lower_j, upper_j] + shift
+    double lo_j = sigma > 0 ? qj - upper_[j] - shift : lower_[j] + shift - qj;
+    double hi_j = sigma > 0 ? qj - lower_[j] - shift : upper_[j] + shift - qj;
+    const double lo = std::max(lo_i, lo_j), hi = std::min(hi_i, hi_j);
+    if (hi - lo > best_hi - best_lo) {
+      best_lo = lo;
+      best_hi = hi;
+    }
+  }
+  if (best_hi < best_lo) return;
+  const double t = 0.5 * (best_lo + best_hi);
+  q[i] = qi + t;
+  q[j] = qj - sigma * t;
 }
 
 int SphericalShoulderArm::solve(const Pose& target, double q1, double reach_slack,
@@ -168,6 +197,15 @@ int SphericalShoulderArm::solve(const Pose& target, double q1, double reach_slac
       for (int i = 0; i < 6; ++i) c.q[i] = phi[i] - offset_[i];
       c.straight_arm = straight;
       c.shoulder_triad = triad;
+      if (triad) {  // axes 2 and 4 in line: only phi2 + sigma phi4 is fixed
+        centre_pair(c.q, 1, 3, w_[1].dot(rot(w_[2], phi3) * w_[3]) > 0.0 ? 1.0 : -1.0);
+      }
+      if (straight) {  // axes 4 and 6 in line, when the upper arm turns about axis 4
+        const Eigen::Vector3d a4 =
+            rot(w_[0], phi1) * rot(w_[1], c.q[1] + offset_[1]) * rot(w_[2], phi3) * w_[3];
+        const double d = a4.dot(f);
+        if (std::abs(d) > 1.0 - 1e-9) centre_pair(c.q, 3, 5, d > 0.0 ? 1.0 : -1.0);
+      }
     }
   }
   return count;

@@ -31,10 +31,14 @@ class SphericalShoulderArm {
             double& elbow_sphere_miss) const noexcept;
 
  private:
+  void centre_pair(JointVector& q, int i, int j, double sigma) const noexcept;
+
   Pose base_inverse_ = Pose::Identity();
-  Eigen::Vector3d s_ = Eigen::Vector3d::Zero();                  // shoulder centre (O0)
-  Eigen::Vector3d w_[6];                                         // joint axes at q = 0 (O0)
-  double offset_[6] = {};                                        // joint i turns by q_i + offset_i
+  Eigen::Vector3d s_ = Eigen::Vector3d::Zero();  // shoulder centre (O0)
+  Eigen::Vector3d w_[6];                         // joint axes at q = 0 (O0)
+  double offset_[6] = {};                        // joint i turns by q_i + offset_i
+  double lower_[6] = {};                         // joint limits
+  double upper_[6] = {};
   double mid_[6] = {};                                           // middle of each joint's limits
   Eigen::Vector3d u0_ = Eigen::Vector3d::Zero();                 // S -> E at q = 0, unit
   double upper_arm_ = 0.0;                                       // |E - S|

@@ -1,8 +1,9 @@
 // The branch sweep of a chain redundant by one joint: the free joint steps over
-// its limits; at each value the finite solution set is linked to the previous
-// one (nearest posture within kBranchGate), a branch's ends are refined by
-// bisection and its posture of largest shoulder manipulability by golden-section
-// search. docs/kinematics.md, "Inverse kinematics".
+// its limits; each open branch is followed to the next value by continuation
+// (steps halved until no joint moves more than kStepGate), solutions no branch
+// reaches open new branches, a branch's ends are refined by bisection and its
+// posture of largest shoulder manipulability by golden-section search.
+// docs/kinematics.md, "Inverse kinematics".
 #include <algorithm>
 #include <cmath>
 
@@ -38,22 +39,18 @@ void IkSolver::Impl::sweep_grid_value(const Pose& target, double t, double t_pre
   grid = cands;  // within the reserved capacity: no allocation
   bool used[kMaxIkSolutions] = {};
   const auto n_grid = grid.size();
-  // Continue each open branch with the nearest solution, or close it.
+  // Follow each open branch to t; close it where it leaves the limits.
   for (std::size_t bi = 0; bi < branches.size();) {
     Branch& b = branches[bi];
-    std::size_t best = n_grid;
-    double best_d = kBranchGate;
-    for (std::size_t j = 0; j < n_grid; ++j) {
-      if (!grid[j].in_limits || used[j]) continue;
-      const double d = angular_distance(b.q_last, grid[j].q);
-      if (d < best_d) {
-        best_d = d;
-        best = j;
+    JointVector q;
+    if (follow(target, b.t_last, b.q_last, t, q) && within_limits(chain, q)) {
+      for (std::size_t j = 0; j < n_grid; ++j) {  // the grid's solution it became
+        if (grid[j].in_limits && !used[j] && angular_distance(q, grid[j].q) < kStepGate) {
+          used[j] = true;
+          break;
+        }
       }
-    }
-    if (best < n_grid) {
-      used[best] = true;
-      note_grid_posture(b, t, grid[best].q);
+      note_grid_posture(b, t, q);
       ++bi;
     } else {
       JointVector q_end = b.q_last;
@@ -98,21 +95,29 @@ void IkSolver::Impl::note_grid_posture(Branch& b, double t, const JointVector& q
   }
 }
 
-// Follows a branch from (t_from, q_from) to t_to in steps of at most one grid step.
-bool IkSolver::Impl::track(const Pose& target, double t_from, const JointVector& q_from,
-                           double t_to, JointVector& q_to) noexcept {
-  const int steps = std::max(1, static_cast<int>(std::ceil(std::abs(t_to - t_from) / sweep_step)));
+// Follows a branch from (t_from, q_from) to t_to by continuation, limits
+// ignored. False when the branch is lost (no solution near within 1e-12 rad).
+bool IkSolver::Impl::follow(const Pose& target, double t_from, const JointVector& q_from,
+                            double t_to, JointVector& q_to) noexcept {
   q_to = q_from;
-  for (int k = 1; k <= steps; ++k) {
-    const double t = k == steps ? t_to : t_from + (t_to - t_from) * k / steps;
+  double t = t_from;
+  double dt = t_to - t_from;
+  for (int guard = 0; t != t_to && guard < 400; ++guard) {
+    const double t_next = std::abs(t_to - t) <= std::abs(dt) ? t_to : t + dt;
     Candidate seed;
     seed.q = q_to;
-    candidates(target, t, &seed, 1, 0);
-    const Candidate* c = nearest(q_to, kBranchGate, true);
-    if (!c) return false;
-    q_to = c->q;
+    candidates(target, t_next, &seed, 1, 0);
+    const Candidate* c = nearest(q_to, kStepGate, false);
+    if (c) {
+      t = t_next;
+      q_to = c->q;
+      dt *= 2.0;
+    } else {
+      dt *= 0.5;
+      if (std::abs(dt) < 1e-12) return false;
+    }
   }
-  return true;
+  return t == t_to;
 }
 
 // The last value of the free joint, between t_good (branch within the limits,
@@ -121,13 +126,10 @@ double IkSolver::Impl::refine_boundary(const Pose& target, double t_good, JointV
                                        double t_bad) noexcept {
   for (int it = 0; it < 64 && std::abs(t_bad - t_good) > 1e-12; ++it) {
     const double t = 0.5 * (t_good + t_bad);
-    Candidate seed;
-    seed.q = q_good;
-    candidates(target, t, &seed, 1, 0);
-    const Candidate* c = nearest(q_good, kBranchGate, false);
-    if (c && c->in_limits) {
+    JointVector q;
+    if (follow(target, t_good, q_good, t, q) && within_limits(chain, q)) {
       t_good = t;
-      q_good = c->q;
+      q_good = q;
     } else {
       t_bad = t;
     }
@@ -143,7 +145,7 @@ void IkSolver::Impl::refine_best(const Pose& target, Branch& b) noexcept {
     const double lo = b.t_best == b.t_first ? b.t_start : b.t_best;
     const double hi = b.t_plateau_end == b.t_last ? b.t_end : b.t_plateau_end;
     JointVector q;
-    if (track(target, b.t_best, b.q_best, 0.5 * (lo + hi), q)) {
+    if (follow(target, b.t_best, b.q_best, 0.5 * (lo + hi), q) && within_limits(chain, q)) {
       b.t_best = 0.5 * (lo + hi);
       b.q_best = q;
     }
@@ -153,12 +155,7 @@ void IkSolver::Impl::refine_best(const Pose& target, Branch& b) noexcept {
   double hi = std::min(b.t_end, b.t_best + sweep_step);
   if (!(hi - lo > 1e-12)) return;
   auto value = [&](double t, JointVector& q) {
-    Candidate seed;
-    seed.q = b.q_best;
-    candidates(target, t, &seed, 1, 0);
-    const Candidate* c = nearest(b.q_best, kBranchGate, true);
-    if (!c) return -1.0;
-    q = c->q;
+    if (!follow(target, b.t_best, b.q_best, t, q) || !within_limits(chain, q)) return -1.0;
     return manipulability_at(q);
   };
   constexpr double kInvPhi = 0.6180339887498949;
