@@ -345,27 +345,44 @@ bool IkSolver::solve_nearest(const Pose& palm, const JointVector& seed, IkSoluti
       return true;
     }
   }
-  // Otherwise the nearest of the solutions (at the seed's free-joint value first).
-  const IkResult* res = nullptr;
-  if (m.redundancy == 1) {
-    const JointLimits& l = m.chain.joints()[static_cast<std::size_t>(m.free)].limits;
-    res = &solve_fixed(palm, std::clamp(seed[m.free], l.lower, l.upper));
-    if (res->status != IkStatus::kSolved) res = &solve(palm);
-  } else {
-    res = &solve(palm);
-  }
-  if (res->status != IkStatus::kSolved) return false;
-  const IkSolution* best = nullptr;
-  double best_d = std::numeric_limits<double>::infinity();
-  for (const IkSolution& s : res->solutions) {
-    const double d = angular_distance(s.q, seed);
-    if (d < best_d) {
-      best_d = d;
-      best = &s;
-    }
+  if (m.redundancy == 1) return m.nearest_by_free_joint(palm, seed, out);
+  // A finite set: the nearest of all.
+  const IkResult& res = solve(palm);
+  if (res.status != IkStatus::kSolved) return false;
+  const IkSolution* best = &res.solutions.front();
+  for (const IkSolution& s : res.solutions) {
+    if (angular_distance(s.q, seed) < angular_distance(best->q, seed)) best = &s;
   }
   out = *best;
   return true;
+}
+
+// The free joint stepped outward from the seed's value (alternately up and down)
+// until some solution lies within the limits; of those, the nearest the seed.
+bool IkSolver::Impl::nearest_by_free_joint(const Pose& target, const JointVector& seed,
+                                           IkSolution& out) noexcept {
+  const JointLimits& l = chain.joints()[static_cast<std::size_t>(free)].limits;
+  const double t0 = std::clamp(seed[free], l.lower, l.upper);
+  const double step = opt.free_joint_step;
+  const int steps = static_cast<int>(std::ceil((l.upper - l.lower) / step));
+  Candidate start;
+  start.q = seed;
+  for (int i = 0; i <= 2 * steps; ++i) {  // t0, t0 + step, t0 - step, t0 + 2 step, ...
+    const double t = t0 + (i % 2 ? 1 : -1) * ((i + 1) / 2) * step;
+    if (t < l.lower || t > l.upper) continue;
+    candidates(target, t, &start, 1, arm ? 0 : opt.sweep_starts);
+    const Candidate* best = nullptr;
+    for (const Candidate& c : cands) {
+      if (c.in_limits && (!best || angular_distance(c.q, seed) < angular_distance(best->q, seed))) {
+        best = &c;
+      }
+    }
+    if (best) {
+      out = make_solution(best->q, target);
+      return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace exodaq::kin

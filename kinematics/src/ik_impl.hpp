@@ -92,6 +92,7 @@ struct IkSolver::Impl {
   void finish(const Pose& target) noexcept;
   double manipulability_at(const JointVector& q) const noexcept;
   JointVector random_posture() noexcept;
+  bool nearest_by_free_joint(const Pose& target, const JointVector& seed, IkSolution& out) noexcept;
 
   // ik_sweep.cpp: the branches of a one-parameter family (redundancy 1).
   void sweep(const Pose& target) noexcept;

@@ -101,8 +101,11 @@ class IkSolver {
   // (also outside its limits; those solutions are flagged). A chain with
   // redundancy() == 0 ignores the value and does what solve() does.
   const IkResult& solve_fixed(const Pose& palm, double free_value) noexcept;
-  // The solution within the limits nearest `seed` (local Levenberg-Marquardt from
-  // the seed first, every solution if that fails). False when there is none.
+  // One solution within the limits near `seed` (for following a moving target):
+  // Levenberg-Marquardt from the seed when that ends within the limits; else, for
+  // a redundant chain, the solution nearest the seed at the free-joint value
+  // closest to the seed's that has one, and for a finite set the nearest of all.
+  // False when there is none.
   bool solve_nearest(const Pose& palm, const JointVector& seed, IkSolution& out) noexcept;
 
   struct Impl;
