@@ -32,6 +32,16 @@ int roots_in(const double* p, int deg, double lo, double hi, double* out) noexce
     }
     return 0;
   }
+  if (deg == 2) {  // closed form, in the form that avoids cancellation
+    const double disc = p[1] * p[1] - 4.0 * p[2] * p[0];
+    if (disc < 0.0) return 0;
+    const double qq = -0.5 * (p[1] + std::copysign(std::sqrt(disc), p[1]));
+    int count = 0;
+    for (const double r : {qq / p[2], qq != 0.0 ? p[0] / qq : qq / p[2]}) {
+      if (r > lo && r < hi && (count == 0 || r != out[0])) out[count++] = r;
+    }
+    return count;
+  }
   double d[kMaxDegree];
   for (int k = 1; k <= deg; ++k) d[k - 1] = k * p[k];
   double cuts[kMaxDegree + 1];
@@ -219,9 +229,13 @@ JointTrajectory::JointTrajectory(const std::vector<JointVector>& via, const Join
         best_T[k] = std::max(options.min_segment_duration, T[k] * worst * (1.0 + 1e-12));
       }
     }
+    bool settled = true;  // every segment at a bound or at the floor
     for (int k = 0; k < m; ++k) {
-      T[k] = std::max(options.min_segment_duration, T[k] * ratio[k]);
+      const double next = std::max(options.min_segment_duration, T[k] * ratio[k]);
+      settled = settled && std::abs(next - T[k]) <= 1e-12 * T[k];
+      T[k] = next;
     }
+    if (settled) break;
   }
   // A floor raised above the uniform stretch changes neighbouring via speeds:
   // stretch once more if that pushed any segment over its bounds.

@@ -177,6 +177,11 @@ void print_json(const IkRun& r) {
 double z(double v) {
   return std::abs(v) < 5e-13 ? 0.0 : v;
 }
+// Degrees as printed with four decimals, -0.0000 as 0.0000.
+double deg4(double rad) {
+  const double d = rad / config::kDegToRad;
+  return std::abs(d) < 5e-5 ? 0.0 : d;
+}
 
 void print_header(const IkRun& r) {
   const auto& p = r.target.translation();
@@ -210,11 +215,11 @@ void print_solutions(const IkRun& r) {
   for (std::size_t i = 0; i < sols.size(); ++i) {
     const kin::IkSolution& s = sols[i];
     std::printf("#%zu joints (deg):", i + 1);
-    for (int j = 0; j < s.q.size(); ++j) std::printf(" %.4f", z(s.q[j] / config::kDegToRad));
+    for (int j = 0; j < s.q.size(); ++j) std::printf(" %.4f", deg4(s.q[j]));
     std::printf("\n");
     if (std::isfinite(s.free_lower)) {
       std::printf("   branch: %s in [%.4f, %.4f] deg\n", free_joint_name(r).c_str(),
-                  z(s.free_lower / config::kDegToRad), z(s.free_upper / config::kDegToRad));
+                  deg4(s.free_lower), deg4(s.free_upper));
     }
     std::printf("   residual: position %.1e m, orientation %.1e rad\n", s.position_residual,
                 s.orientation_residual);
