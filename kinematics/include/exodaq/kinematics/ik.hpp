@@ -9,7 +9,8 @@
 // families: one joint is free; solve() then returns one solution per branch
 // (an interval of the free joint) and solve_fixed() the finite set at one value.
 // Explanations, tolerances and limitations: docs/kinematics.md.
-// The constructor allocates (start-up); solve*() allocate nothing, throw nothing.
+// The constructor allocates (start-up); solve*() allocate nothing, throw nothing,
+// and use the solver's own scratch space: one solver per thread.
 #include <cstdint>
 #include <limits>
 #include <memory>
