@@ -136,6 +136,48 @@ void SphericalShoulderArm::centre_pair(JointVector& q, int i, int j, double sigm
   q[j] = qj - sigma * t;
 }
 
+// Paden-Kahan subproblem 2 on axis 4 (two roots) for joints 2 and 3, then
+// subproblem 1 for joint 4.
+void SphericalShoulderArm::shoulder_triad(const Eigen::Matrix3d& N,
+                                          ShoulderTriad out[2]) const noexcept {
+  const Eigen::Vector3d& p = w_[3];
+  const Eigen::Vector3d qv = N * p;
+  const double c23 = w_[1].dot(w_[2]);
+  const double den = c23 * c23 - 1.0;
+  const double alpha = (c23 * w_[2].dot(p) - w_[1].dot(qv)) / den;
+  const double beta = (c23 * w_[1].dot(qv) - w_[2].dot(p)) / den;
+  const Eigen::Vector3d w23 = w_[1].cross(w_[2]);
+  const double gamma_sq =
+      (p.squaredNorm() - alpha * alpha - beta * beta - 2.0 * alpha * beta * c23) /
+      w23.squaredNorm();
+  const double gamma = std::sqrt(std::max(gamma_sq, 0.0));
+  for (int k = 0; k < 2; ++k) {
+    ShoulderTriad& t = out[k];
+    const Eigen::Vector3d z = alpha * w_[1] + beta * w_[2] + (k ? -gamma : gamma) * w23;
+    t.phi3 = 0.0;
+    turn_angle(w_[2], p, z, t.phi3);
+    t.phi2 = mid_[1] + offset_[1];
+    t.aligned = !turn_angle(w_[1], z, qv, t.phi2);  // axes 2 and 4 in line: phi2 free
+    const Eigen::Matrix3d Y = rot(w_[2], t.phi3).transpose() * rot(w_[1], t.phi2).transpose() * N;
+    t.phi4 = angle_about(w_[3], Y);
+  }
+}
+
+// At a singular posture two joints turn about one line: centre the pair.
+void SphericalShoulderArm::centre_singular_pairs(SphericalCandidate& c,
+                                                 const Eigen::Vector3d& forearm) const noexcept {
+  const double phi3 = c.q[2] + offset_[2];
+  if (c.shoulder_triad) {  // axes 2 and 4 in line: only phi2 + sigma phi4 is fixed
+    centre_pair(c.q, 1, 3, w_[1].dot(rot(w_[2], phi3) * w_[3]) > 0.0 ? 1.0 : -1.0);
+  }
+  if (c.straight_arm) {  // axes 4 and 6 in line, when the upper arm turns about axis 4
+    const Eigen::Vector3d a4 = rot(w_[0], c.q[0] + offset_[0]) * rot(w_[1], c.q[1] + offset_[1]) *
+                               rot(w_[2], phi3) * w_[3];
+    const double d = a4.dot(forearm);
+    if (std::abs(d) > 1.0 - 1e-9) centre_pair(c.q, 3, 5, d > 0.0 ? 1.0 : -1.0);
+  }
+}
+
 int SphericalShoulderArm::solve(const Pose& target, double q1, double reach_slack,
                                 SphericalCandidate out[4],
                                 double& elbow_sphere_miss) const noexcept {
@@ -171,41 +213,16 @@ int SphericalShoulderArm::solve(const Pose& target, double q1, double reach_slac
       Rsh = palm_from_home * rot(w_[5], phi6).transpose() * R5.transpose();
     }
     // Joints 2-4: Rot(w2, phi2) Rot(w3, phi3) Rot(w4, phi4) = N.
-    const Eigen::Matrix3d N = rot(w_[0], phi1).transpose() * Rsh;
-    const Eigen::Vector3d& p = w_[3];
-    const Eigen::Vector3d qv = N * p;
-    const double c23 = w_[1].dot(w_[2]);
-    const double den = c23 * c23 - 1.0;
-    const double alpha = (c23 * w_[2].dot(p) - w_[1].dot(qv)) / den;
-    const double beta = (c23 * w_[1].dot(qv) - w_[2].dot(p)) / den;
-    const Eigen::Vector3d w23 = w_[1].cross(w_[2]);
-    const double gamma_sq =
-        (p.squaredNorm() - alpha * alpha - beta * beta - 2.0 * alpha * beta * c23) /
-        w23.squaredNorm();
-    const double gamma = std::sqrt(std::max(gamma_sq, 0.0));
-    for (const double g : {gamma, -gamma}) {
-      const Eigen::Vector3d z = alpha * w_[1] + beta * w_[2] + g * w23;
-      double phi3 = 0.0;
-      turn_angle(w_[2], p, z, phi3);
-      double phi2 = mid_[1] + offset_[1];
-      const bool triad = !turn_angle(w_[1], z, qv, phi2);
-      const Eigen::Matrix3d Y = rot(w_[2], phi3).transpose() * rot(w_[1], phi2).transpose() * N;
-      const double phi4 = angle_about(w_[3], Y);
+    ShoulderTriad triads[2];
+    shoulder_triad(rot(w_[0], phi1).transpose() * Rsh, triads);
+    for (const ShoulderTriad& t : triads) {
       SphericalCandidate& c = out[count++];
       c.q.resize(6);
-      const double phi[6] = {phi1, phi2, phi3, phi4, phi5, phi6};
+      const double phi[6] = {phi1, t.phi2, t.phi3, t.phi4, phi5, phi6};
       for (int i = 0; i < 6; ++i) c.q[i] = phi[i] - offset_[i];
       c.straight_arm = straight;
-      c.shoulder_triad = triad;
-      if (triad) {  // axes 2 and 4 in line: only phi2 + sigma phi4 is fixed
-        centre_pair(c.q, 1, 3, w_[1].dot(rot(w_[2], phi3) * w_[3]) > 0.0 ? 1.0 : -1.0);
-      }
-      if (straight) {  // axes 4 and 6 in line, when the upper arm turns about axis 4
-        const Eigen::Vector3d a4 =
-            rot(w_[0], phi1) * rot(w_[1], c.q[1] + offset_[1]) * rot(w_[2], phi3) * w_[3];
-        const double d = a4.dot(f);
-        if (std::abs(d) > 1.0 - 1e-9) centre_pair(c.q, 3, 5, d > 0.0 ? 1.0 : -1.0);
-      }
+      c.shoulder_triad = t.aligned;
+      centre_singular_pairs(c, f);
     }
   }
   return count;

@@ -31,6 +31,12 @@ class SphericalShoulderArm {
             double& elbow_sphere_miss) const noexcept;
 
  private:
+  struct ShoulderTriad {
+    double phi2 = 0.0, phi3 = 0.0, phi4 = 0.0;
+    bool aligned = false;  // axes 2 and 4 in line
+  };
+  void shoulder_triad(const Eigen::Matrix3d& N, ShoulderTriad out[2]) const noexcept;
+  void centre_singular_pairs(SphericalCandidate& c, const Eigen::Vector3d& forearm) const noexcept;
   void centre_pair(JointVector& q, int i, int j, double sigma) const noexcept;
 
   Pose base_inverse_ = Pose::Identity();

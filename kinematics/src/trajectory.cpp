@@ -156,6 +156,113 @@ void check_via_points(const std::vector<JointVector>& via) {
   }
 }
 
+// The segment durations for one set of via points and bounds.
+class DurationPlanner {
+ public:
+  DurationPlanner(const std::vector<JointVector>& via, const JointBounds& bounds,
+                  const TrajectoryOptions& options)
+      : via_(via),
+        bounds_(bounds),
+        shape_(options.shape),
+        floor_(options.min_segment_duration),
+        m_(static_cast<int>(via.size()) - 1),
+        n_(static_cast<int>(via.front().size())),
+        T_(static_cast<std::size_t>(m_)),
+        vel_(static_cast<std::size_t>((m_ + 1) * n_)),
+        ratio_(static_cast<std::size_t>(m_)) {}
+
+  // Each segment starts at its rest-to-rest minimum and is rescaled by its own
+  // ratio; the best total so far, made tight by one uniform stretch (every ratio
+  // scales exactly with it), is kept.
+  void plan() {
+    for (int k = 0; k < m_; ++k) {
+      T_[k] = floor_;
+      for (int j = 0; j < n_; ++j) {
+        T_[k] = std::max(T_[k], rest_to_rest(shape_, via_[k + 1][j] - via_[k][j],
+                                             bounds_.max_speed[j], a_max(j)));
+      }
+    }
+    std::vector<double> best = T_;
+    double best_total = std::numeric_limits<double>::infinity();
+    for (int iter = 0; iter < 60; ++iter) {
+      const double worst = ratios();
+      if (!(worst > 0.0)) break;  // nothing moves
+      double total = 0.0;
+      for (const double d : T_) total += std::max(floor_, d * worst);
+      if (total < best_total) {
+        best_total = total;
+        for (int k = 0; k < m_; ++k) best[k] = std::max(floor_, T_[k] * worst * (1.0 + 1e-12));
+      }
+      bool settled = true;  // every segment at a bound or at the floor
+      for (int k = 0; k < m_; ++k) {
+        const double next = std::max(floor_, T_[k] * ratio_[k]);
+        settled = settled && std::abs(next - T_[k]) <= 1e-12 * T_[k];
+        T_[k] = next;
+      }
+      if (settled) break;
+    }
+    // A floor raised above the uniform stretch changes neighbouring via speeds:
+    // stretch once more if that pushed any segment over its bounds.
+    T_ = best;
+    const double worst = ratios();
+    if (worst > 1.0) {
+      for (double& d : T_) d *= worst * (1.0 + 1e-12);
+    }
+    velocities();
+  }
+
+  const std::vector<double>& durations() const { return T_; }
+  // Coefficients of joint j's polynomial on segment k (after plan()).
+  void coefficients(int k, int j, double c[6]) const noexcept {
+    segment_coefficients(shape_, via_[k][j], via_[k + 1][j], vel_[k * n_ + j],
+                         vel_[(k + 1) * n_ + j], T_[k], c);
+  }
+
+ private:
+  double a_max(int j) const noexcept {
+    return bounds_.max_acceleration.size() ? bounds_.max_acceleration[j]
+                                           : std::numeric_limits<double>::infinity();
+  }
+  // Speeds at the via points (Fritsch-Butland: the harmonic mean of the two
+  // neighbouring slopes when they agree in sign, else 0): no segment overshoots.
+  void velocities() noexcept {
+    std::fill(vel_.begin(), vel_.end(), 0.0);
+    for (int k = 1; k < m_; ++k) {
+      for (int j = 0; j < n_; ++j) {
+        const double s1 = (via_[k][j] - via_[k - 1][j]) / T_[k - 1];
+        const double s2 = (via_[k + 1][j] - via_[k][j]) / T_[k];
+        if (s1 * s2 > 0.0) vel_[k * n_ + j] = 2.0 * s1 * s2 / (s1 + s2);
+      }
+    }
+  }
+  // How far each segment is from its bounds (1 = exactly at one); the worst.
+  double ratios() noexcept {
+    velocities();
+    double worst = 0.0;
+    for (int k = 0; k < m_; ++k) {
+      double r = 0.0;
+      for (int j = 0; j < n_; ++j) {
+        double c[6], speed, acc;
+        coefficients(k, j, c);
+        segment_peaks(c, T_[k], speed, acc);
+        r = std::max({r, speed / bounds_.max_speed[j], std::sqrt(acc / a_max(j))});
+      }
+      ratio_[k] = r;
+      worst = std::max(worst, r);
+    }
+    return worst;
+  }
+
+  const std::vector<JointVector>& via_;
+  const JointBounds& bounds_;
+  SegmentShape shape_;
+  double floor_;
+  int m_, n_;
+  std::vector<double> T_;
+  std::vector<double> vel_;  // (m + 1) x n, row k = via point k
+  std::vector<double> ratio_;
+};
+
 }  // namespace
 
 JointTrajectory::JointTrajectory(const std::vector<JointVector>& via, const JointBounds& bounds,
@@ -168,98 +275,24 @@ JointTrajectory::JointTrajectory(const std::vector<JointVector>& via, const Join
   if (!(options.min_segment_duration > 0.0) || !std::isfinite(options.min_segment_duration)) {
     throw std::invalid_argument("min_segment_duration must be > 0");
   }
+  DurationPlanner planner(via, bounds, options);
+  planner.plan();
   const int m = static_cast<int>(via.size()) - 1;
   const int n = joints_;
-  const auto a_max = [&](int j) {
-    return bounds.max_acceleration.size() ? bounds.max_acceleration[j]
-                                          : std::numeric_limits<double>::infinity();
-  };
-  // Speeds at the via points (Fritsch-Butland: the harmonic mean of the two
-  // neighbouring slopes when they agree in sign, else 0): no segment overshoots.
-  std::vector<double> T(static_cast<std::size_t>(m));
-  std::vector<double> vel(static_cast<std::size_t>((m + 1) * n));
-  std::vector<double> ratio(static_cast<std::size_t>(m));
-  auto velocities = [&] {
-    std::fill(vel.begin(), vel.end(), 0.0);
-    for (int k = 1; k < m; ++k) {
-      for (int j = 0; j < n; ++j) {
-        const double s1 = (via[k][j] - via[k - 1][j]) / T[k - 1];
-        const double s2 = (via[k + 1][j] - via[k][j]) / T[k];
-        if (s1 * s2 > 0.0) vel[static_cast<std::size_t>(k * n + j)] = 2.0 * s1 * s2 / (s1 + s2);
-      }
-    }
-  };
-  // How far each segment exceeds its bounds (1 = exactly at a bound).
-  auto ratios = [&] {
-    velocities();
-    double worst = 0.0;
-    for (int k = 0; k < m; ++k) {
-      double r = 0.0;
-      for (int j = 0; j < n; ++j) {
-        double c[6], speed, acc;
-        segment_coefficients(shape_, via[k][j], via[k + 1][j], vel[k * n + j], vel[(k + 1) * n + j],
-                             T[k], c);
-        segment_peaks(c, T[k], speed, acc);
-        r = std::max({r, speed / bounds.max_speed[j], std::sqrt(acc / a_max(j))});
-      }
-      ratio[k] = r;
-      worst = std::max(worst, r);
-    }
-    return worst;
-  };
-  for (int k = 0; k < m; ++k) {
-    T[k] = options.min_segment_duration;
-    for (int j = 0; j < n; ++j) {
-      T[k] = std::max(
-          T[k], rest_to_rest(shape_, via[k + 1][j] - via[k][j], bounds.max_speed[j], a_max(j)));
-    }
-  }
-  // Each segment rescaled by its own ratio; the best total so far, made tight by
-  // one uniform stretch (every ratio scales exactly with it), is kept.
-  std::vector<double> best_T = T;
-  double best_total = std::numeric_limits<double>::infinity();
-  for (int iter = 0; iter < 60; ++iter) {
-    const double worst = ratios();
-    if (!(worst > 0.0)) break;  // nothing moves
-    double total = 0.0;
-    for (const double d : T) total += std::max(options.min_segment_duration, d * worst);
-    if (total < best_total) {
-      best_total = total;
-      for (int k = 0; k < m; ++k) {
-        best_T[k] = std::max(options.min_segment_duration, T[k] * worst * (1.0 + 1e-12));
-      }
-    }
-    bool settled = true;  // every segment at a bound or at the floor
-    for (int k = 0; k < m; ++k) {
-      const double next = std::max(options.min_segment_duration, T[k] * ratio[k]);
-      settled = settled && std::abs(next - T[k]) <= 1e-12 * T[k];
-      T[k] = next;
-    }
-    if (settled) break;
-  }
-  // A floor raised above the uniform stretch changes neighbouring via speeds:
-  // stretch once more if that pushed any segment over its bounds.
-  T = best_T;
-  const double worst = ratios();
-  if (worst > 1.0) {
-    for (double& d : T) d *= worst * (1.0 + 1e-12);
-  }
-  velocities();
-  durations_ = T;
+  durations_ = planner.durations();
   times_.assign(static_cast<std::size_t>(m + 1), 0.0);
   segments_.resize(static_cast<std::size_t>(m));
   peak_speed_ = JointVector::Zero(n);
   peak_acceleration_ = JointVector::Zero(n);
   for (int k = 0; k < m; ++k) {
-    times_[k + 1] = times_[k] + T[k];
+    times_[k + 1] = times_[k] + durations_[k];
     Segment& s = segments_[k];
     for (auto& c : s.c) c.resize(n);
     for (int j = 0; j < n; ++j) {
       double c[6], speed, acc;
-      segment_coefficients(shape_, via[k][j], via[k + 1][j], vel[k * n + j], vel[(k + 1) * n + j],
-                           T[k], c);
+      planner.coefficients(k, j, c);
       for (int i = 0; i < 6; ++i) s.c[i][j] = c[i];
-      segment_peaks(c, T[k], speed, acc);
+      segment_peaks(c, durations_[k], speed, acc);
       peak_speed_[j] = std::max(peak_speed_[j], speed);
       peak_acceleration_[j] = std::max(peak_acceleration_[j], acc);
     }
