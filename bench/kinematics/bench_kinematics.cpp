@@ -20,6 +20,7 @@
 #include "exodaq/config/model_file.hpp"
 #include "exodaq/kinematics/ik.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
+#include "exodaq/kinematics/trajectory.hpp"
 
 namespace {
 
@@ -299,6 +300,54 @@ void BM_Ik_Exodaq_AllBranches(benchmark::State& state) {
   report(state, rates);
 }
 
+// --- Joint trajectories ----------------------------------------------------------
+
+// Seed 001 Table III speeds for joints 1-4, the configs' 5.38 and 3.0 rad/s for
+// 5-6, 4 rad/s^2 everywhere; eight via points from the fixture's postures.
+exodaq::kin::JointBounds trajectory_bounds() {
+  exodaq::kin::JointBounds b;
+  b.max_speed.resize(6);
+  b.max_speed << 0.64, 1.06, 1.80, 5.38, 5.38, 3.0;
+  b.max_acceleration = JointVector::Constant(6, 4.0);
+  return b;
+}
+
+void trajectory_plan(benchmark::State& state, exodaq::kin::SegmentShape shape) {
+  const auto& f = fixture();
+  const exodaq::kin::JointBounds b = trajectory_bounds();
+  exodaq::kin::TrajectoryOptions o;
+  o.shape = shape;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const std::vector<JointVector> via(f.qs.begin() + static_cast<std::ptrdiff_t>(k),
+                                       f.qs.begin() + static_cast<std::ptrdiff_t>(k + 8));
+    k = (k + 8) & 1015;
+    exodaq::kin::JointTrajectory t(via, b, o);
+    benchmark::DoNotOptimize(t.duration());
+  }
+}
+
+void BM_TrajectoryPlan8_Cubic(benchmark::State& state) {
+  trajectory_plan(state, exodaq::kin::SegmentShape::kCubic);
+}
+void BM_TrajectoryPlan8_Quintic(benchmark::State& state) {
+  trajectory_plan(state, exodaq::kin::SegmentShape::kQuintic);
+}
+
+// One sample (q, qd, qdd of six joints) of a 64-via-point quintic trajectory.
+void BM_TrajectorySample(benchmark::State& state) {
+  const auto& f = fixture();
+  const std::vector<JointVector> via(f.qs.begin(), f.qs.begin() + 64);
+  const exodaq::kin::JointTrajectory t(via, trajectory_bounds());
+  exodaq::kin::TrajectorySample s;
+  double time = 0.0;
+  for (auto _ : state) {
+    t.sample(time, s);
+    time = time + 1e-3 > t.duration() ? 0.0 : time + 1e-3;
+    benchmark::DoNotOptimize(s);
+  }
+}
+
 BENCHMARK(BM_PalmFk_Exodaq);
 BENCHMARK(BM_PalmFk_Kdl);
 BENCHMARK(BM_FkJacManip_Exodaq);
@@ -310,6 +359,9 @@ BENCHMARK(BM_Ik_Exodaq_Nearest);
 BENCHMARK(BM_Ik_Exodaq_NearestNumerical);
 BENCHMARK(BM_Ik_Exodaq_AtAzimuth);
 BENCHMARK(BM_Ik_Exodaq_AllBranches)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_TrajectoryPlan8_Cubic);
+BENCHMARK(BM_TrajectoryPlan8_Quintic)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_TrajectorySample);
 
 }  // namespace
 
