@@ -10,43 +10,6 @@ namespace {
 
 using test::kPi;
 
-// Seed 000's arm in Craig's form. Regrouping the standard product
-//   Rz(t1) Tz(d1) [Tx(a1) Rx(al1)] Rz(t2) Tz(d2) [Tx(a2) Rx(al2)] ... [Tx(a6) Rx(al6)]
-// row i of the modified table is (a_{i-1}, alpha_{i-1}, d_i), and the last
-// [Tx(a6) Rx(al6)] (identity here, alpha6 = a6 = 0) becomes the tool.
-constexpr const char* kMacaqueModifiedDh = R"(
-name: macaque_exo_mdh
-convention: modified_dh
-angle_unit: deg
-joints:
-  - {name: j1, dh: {a: 0, alpha: 0, d: 0}, limits: [-50.5, 140.5]}
-  - {name: j2, dh: {a: 0, alpha: -90, d: 0}, limits: [-228.3, 48.3]}
-  - {name: j3, dh: {a: 0, alpha: 90, d: 0}, limits: [-98.1, 98.1]}
-  - {name: j4, dh: {a: 0, alpha: -90, d: 0.145}, limits: [-80, 80]}
-  - {name: j5, dh: {a: 0, alpha: 90, d: 0}, limits: [-88.7, 8.1]}
-  - {name: j6, dh: {a: 0, alpha: -90, d: 0.152}, limits: [-80, 80]}
-home_posture: [45, -90, 90, 0, 0, 0]
-)";
-
-// The same arm as screws, read off Table 3 at q = 0: joint axes alternate
-// z0 / y0 through the shoulder centre (joints 1-4) and the elbow (0, L1, 0)
-// (joints 5-6); at q = 0 the palm is at (0, L1 + L2, 0) with R = Rx(-90).
-constexpr const char* kMacaquePoe = R"(
-name: macaque_exo_poe
-convention: poe
-angle_unit: deg
-joints:
-  - {name: j1, screw: {omega: [0, 0, 1], q: [0, 0, 0]}, limits: [-50.5, 140.5]}
-  - {name: j2, screw: {omega: [0, 1, 0], q: [0, 0, 0]}, limits: [-228.3, 48.3]}
-  - {name: j3, screw: {omega: [0, 0, 1], q: [0, 0, 0]}, limits: [-98.1, 98.1]}
-  - {name: j4, screw: {omega: [0, 1, 0], q: [0, 0, 0]}, limits: [-80, 80]}
-  - {name: j5, screw: {omega: [0, 0, 1], q: [0, 0.145, 0]}, limits: [-88.7, 8.1]}
-  - {name: j6, screw: {omega: [0, 1, 0], q: [0, 0.145, 0]}, limits: [-80, 80]}
-home_pose: {translation: [0, 0.297, 0], rpy: [-90, 0, 0]}
-home_posture: [45, -90, 90, 0, 0, 0]
-elbow_frame: 4
-)";
-
 void expect_same_palm(const Chain& a, const Chain& b, const JointVector& q, double tol) {
   Pose pa, pb;
   Jacobian Ja, Jb;
@@ -60,8 +23,8 @@ void expect_same_palm(const Chain& a, const Chain& b, const JointVector& q, doub
 
 TEST(Conventions, MacaqueInThreeModelFilesAgree) {
   const auto& sdh = test::macaque();
-  const auto mdh = config::load_model_text(kMacaqueModifiedDh, "mdh.yaml");
-  const auto poe = config::load_model_text(kMacaquePoe, "poe.yaml");
+  const auto mdh = config::load_model_text(test::kMacaqueModifiedDh, "mdh.yaml");
+  const auto poe = config::load_model_text(test::kMacaquePoe, "poe.yaml");
   EXPECT_EQ(mdh.chain.convention(), Convention::kModifiedDh);
   EXPECT_EQ(poe.chain.convention(), Convention::kProductOfExponentials);
   const Chain converted = sdh.chain.to_product_of_exponentials();
@@ -79,7 +42,7 @@ TEST(Conventions, DhToPoeKeepsEveryFrameAndJacobian) {
   const auto& sdh = test::macaque();
   const Chain poe = sdh.chain.to_product_of_exponentials();
   ASSERT_EQ(poe.convention(), Convention::kProductOfExponentials);
-  // The screws read off the table (see kMacaquePoe).
+  // The screws read off the table (see test::kMacaquePoe).
   const double L1 = test::kL1;
   const Eigen::Vector3d w[6] = {{0, 0, 1}, {0, 1, 0}, {0, 0, 1}, {0, 1, 0}, {0, 0, 1}, {0, 1, 0}};
   const Eigen::Vector3d p[6] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, 0, 0}, {0, L1, 0}, {0, L1, 0}};

@@ -1,37 +1,19 @@
 // `exodaq fk` end to end: runs the built binary (EXODAQ_TOOL).
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <yaml-cpp/yaml.h>
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
 
+#include "tool_run.hpp"
+
 namespace {
 
-struct Result {
-  int code = -1;
-  std::string out;
-  std::string err;
-};
+using Result = exodaq::test::ToolResult;
 
 Result run(const std::string& args) {
-  const std::string err_file = ::testing::TempDir() + "exodaq_fk_stderr.txt";
-  const std::string cmd = std::string(EXODAQ_TOOL) + " " + args + " 2>" + err_file;
-  Result r;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf{};
-  std::size_t got = 0;
-  while ((got = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), got);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  if (FILE* e = std::fopen(err_file.c_str(), "r")) {
-    while ((got = std::fread(buf.data(), 1, buf.size(), e)) > 0) r.err.append(buf.data(), got);
-    std::fclose(e);
-  }
-  return r;
+  return exodaq::test::run_tool(args);
 }
 
 const std::string kModel = std::string(EXODAQ_SOURCE_DIR) + "/config/models/macaque_exo.yaml";

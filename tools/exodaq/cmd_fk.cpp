@@ -9,6 +9,7 @@
 #include "command.hpp"
 #include "exodaq/config/model_file.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
+#include "json_out.hpp"
 
 namespace exodaq::tools {
 namespace {
@@ -19,38 +20,6 @@ struct FkOptions {
   std::vector<double> rad;
   bool json = false;
 };
-
-std::string json_string(const std::string& s) {
-  std::string out = "\"";
-  for (const char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (c < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", c);
-      out += buf;
-    } else {
-      out += ch;
-    }
-  }
-  return out + "\"";
-}
-
-std::string json_number(double v) {
-  if (!std::isfinite(v)) return "null";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
-template <typename V>
-std::string json_array(const V& v) {
-  std::string out = "[";
-  for (Eigen::Index i = 0; i < v.size(); ++i) out += (i ? ", " : "") + json_number(v[i]);
-  return out + "]";
-}
 
 int run_fk(const FkOptions& o) {
   if (o.deg.empty() == o.rad.empty()) {
