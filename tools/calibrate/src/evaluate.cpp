@@ -1,6 +1,7 @@
 // Predictions and error statistics with a given parameter set (no solver).
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 
 #include "exodaq/calibration/solver.hpp"
@@ -10,7 +11,12 @@ namespace exodaq::calibration {
 
 Eigen::Vector3d predict_marker(const NominalModel& model, const ParamVector& x,
                                const std::array<double, kJoints>& theta_r) {
-  return detail::model_point(model, x.data(), theta_r.data());
+  return detail::model_point(model, x.data(), theta_r.data(), MarkerSite{});
+}
+
+Eigen::Vector3d predict_marker(const NominalModel& model, const ParamVector& x,
+                               const std::array<double, kJoints>& theta_r, const MarkerSite& site) {
+  return detail::model_point(model, x.data(), theta_r.data(), site);
 }
 
 ErrorStats error_stats(const std::vector<Eigen::Vector3d>& res) {
@@ -47,11 +53,24 @@ ErrorStats evaluate(const NominalModel& model, const ParamVector& x,
   res.reserve(points.size());
   for (const auto& p : points) {
     res.push_back(Eigen::Vector3d(p.marker[0], p.marker[1], p.marker[2]) -
-                  predict_marker(model, x, p.theta_r));
+                  predict_marker(model, x, p.theta_r, p.site));
   }
   ErrorStats s = error_stats(res);
   if (out) *out = std::move(res);
   return s;
+}
+
+std::vector<MarkerResiduals> residuals_per_marker(const std::vector<AlignedSample>& points,
+                                                  const std::vector<Eigen::Vector3d>& residuals) {
+  std::map<int, std::vector<Eigen::Vector3d>> by_id;
+  std::map<int, MarkerSite> sites;
+  for (std::size_t i = 0; i < points.size() && i < residuals.size(); ++i) {
+    by_id[points[i].site.id].push_back(residuals[i]);
+    sites[points[i].site.id] = points[i].site;
+  }
+  std::vector<MarkerResiduals> out;
+  for (const auto& [id, res] : by_id) out.push_back({sites[id], error_stats(res)});
+  return out;
 }
 
 }  // namespace exodaq::calibration

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "detail.hpp"
@@ -96,6 +97,49 @@ void mark_followers(const std::vector<int>& est, const Eigen::VectorXd& beta, in
   }
 }
 
+// The markers of a calibration by mount, with their point counts.
+struct MarkerCensus {
+  std::map<int, std::size_t> hand, base;
+  int primary = -1;  // the hand marker with the most points (ties: lowest id; -1: no id column)
+  bool has_primary = false;
+
+  explicit MarkerCensus(const std::vector<AlignedSample>& points) {
+    for (const auto& p : points) ++(p.site.mount == MarkerMount::kHand ? hand : base)[p.site.id];
+    std::size_t most = 0;
+    for (const auto& [id, n] : hand) {
+      if (n > most) {
+        most = n;
+        primary = id;
+        has_primary = true;
+      }
+    }
+  }
+};
+
+std::string id_list(const std::map<int, std::size_t>& ids, int except) {
+  std::string out;
+  for (const auto& [id, n] : ids) {
+    if (id != except) out += (out.empty() ? "" : ", ") + std::to_string(id);
+  }
+  return out;
+}
+
+// J's rows (3 per point) of the points whose marker passes `keep`.
+template <typename Keep>
+Eigen::MatrixXd rows_of(const Eigen::MatrixXd& J, const std::vector<AlignedSample>& points,
+                        Keep keep) {
+  std::vector<Eigen::Index> rows;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!keep(points[i].site)) continue;
+    for (Eigen::Index k = 0; k < 3; ++k) rows.push_back(static_cast<Eigen::Index>(3 * i) + k);
+  }
+  return J(rows, Eigen::all);
+}
+
+bool is_camera(int p) {
+  return p >= kDx && p <= kPhiZ;
+}
+
 }  // namespace
 
 Eigen::MatrixXd columns(const Eigen::MatrixXd& J, const std::vector<int>& cols) {
@@ -181,6 +225,59 @@ std::vector<Correlation> correlations(const Eigen::MatrixXd& cov, const std::vec
     }
   }
   return out;
+}
+
+std::vector<ObservationSet> observation_sets(const Eigen::MatrixXd& J,
+                                             const std::vector<AlignedSample>& points,
+                                             const ColumnMask& estimable, bool with_tau,
+                                             double sigma_mm, const Bounds& bounds) {
+  const MarkerCensus census(points);
+  bool camera_fixed = false;
+  for (int p = kDx; p <= kPhiZ; ++p) camera_fixed = camera_fixed || bounds.params[p].fixed;
+  if (!census.has_primary || (census.hand.size() == 1 && census.base.empty() && !camera_fixed)) {
+    return {};
+  }
+  ColumnMask camera_free = estimable;
+  for (int p = 0; p < kParams; ++p) camera_free[p] = camera_free[p] || is_camera(p);
+  const auto& o = bounds.identifiability;
+  auto analyse = [&](std::string name, const Eigen::MatrixXd& Jr, const ColumnMask& cols) {
+    ObservationSet set{std::move(name), unobservable(Jr, cols, with_tau, sigma_mm, o), {}};
+    std::sort(set.unidentifiable.begin(), set.unidentifiable.end());
+    return set;
+  };
+  const int primary = census.primary;
+  const auto is_primary = [primary](const MarkerSite& m) {
+    return m.mount == MarkerMount::kHand && m.id == primary;
+  };
+  const Eigen::MatrixXd J1 = rows_of(J, points, is_primary);
+  std::vector<ObservationSet> sets;
+  const std::string which = primary < 0 ? "" : " (id " + std::to_string(primary) + ")";
+  sets.push_back(analyse("one hand marker" + which + ", camera free (seed 000)", J1, camera_free));
+  if (census.hand.size() > 1) {
+    sets.push_back(analyse(
+        "+ hand markers " + id_list(census.hand, primary),
+        rows_of(J, points, [](const MarkerSite& m) { return m.mount == MarkerMount::kHand; }),
+        camera_free));
+  }
+  if (!census.base.empty()) {
+    sets.push_back(analyse("+ base markers " + id_list(census.base, -1),
+                           rows_of(J, points,
+                                   [&](const MarkerSite& m) {
+                                     return is_primary(m) || m.mount == MarkerMount::kBase;
+                                   }),
+                           camera_free));
+  }
+  if (camera_fixed) sets.push_back(analyse("camera transform fixed (bounds file)", J1, estimable));
+  sets.push_back(analyse("all observations (this calibration)", J, estimable));
+  for (auto& set : sets) {
+    for (int p : sets.front().unidentifiable) {
+      const auto& u = set.unidentifiable;
+      if (estimable[p] && std::find(u.begin(), u.end(), p) == u.end()) {
+        set.newly_identifiable.push_back(p);
+      }
+    }
+  }
+  return sets;
 }
 
 }  // namespace detail

@@ -46,4 +46,13 @@ void describe_degeneracies(const Eigen::MatrixXd& J, const std::vector<int>& est
 std::vector<Correlation> correlations(const Eigen::MatrixXd& cov, const std::vector<int>& est,
                                       double threshold);
 
+// Which parameters each kind of observation identifies (Report::observation_sets):
+// row subsets of J by marker (one hand marker, + the other hand markers, +
+// the base markers) and column sets (camera free as in seed 000, or as the
+// bounds file says). Empty with one marker and a free camera (nothing to compare).
+std::vector<ObservationSet> observation_sets(const Eigen::MatrixXd& J,
+                                             const std::vector<AlignedSample>& points,
+                                             const ColumnMask& estimable, bool with_tau,
+                                             double sigma_mm, const Bounds& bounds);
+
 }  // namespace exodaq::calibration::detail

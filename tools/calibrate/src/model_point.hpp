@@ -74,13 +74,20 @@ Eigen::Matrix<T, 3, 1> world_to_camera(const T* x, const Eigen::Matrix<T, 3, 1>&
   return Eigen::Matrix<T, 3, 1>(wx + x[kDx], wy + x[kDy], wz + x[kDz]);
 }
 
-// Marker in the camera frame (seed 000 Fig. 12): the tool point + Δpᴹ in frame 6.
+// Marker in the camera frame (seed 000 Fig. 12). A hand marker sits at the
+// tool point + its layout position + Δpᴹ in frame 6 (seed 000's one marker:
+// position 0); a base marker at its layout position in the world frame.
 template <typename T>
-Eigen::Matrix<T, 3, 1> model_point(const NominalModel& m, const T* x, const T* theta) {
+Eigen::Matrix<T, 3, 1> model_point(const NominalModel& m, const T* x, const T* theta,
+                                   const MarkerSite& site) {
+  const auto& q = site.position;
+  if (site.mount == MarkerMount::kBase) {
+    return world_to_camera(x, Eigen::Matrix<T, 3, 1>(T(q[0]), T(q[1]), T(q[2])));
+  }
   const Eigen::Vector3d t6 = m.tool.translation();
-  const T px = T(t6.x()) + x[kPx];
-  const T py = T(t6.y()) + x[kPy];
-  const T pz = T(t6.z()) + x[kPz];
+  const T px = T(t6.x() + q[0]) + x[kPx];
+  const T py = T(t6.y() + q[1]) + x[kPy];
+  const T pz = T(t6.z() + q[2]) + x[kPz];
   return world_to_camera(x, frame6_to_world(m, x, theta, px, py, pz));
 }
 

@@ -67,6 +67,7 @@ struct MarkerCost {
   const NominalModel* model;
   std::array<double, kJoints> theta_r;
   Eigen::Vector3d measured;
+  MarkerSite site;
   // Time-offset estimation: the encoder stream and the marker time.
   const std::vector<EncoderSample>* enc = nullptr;
   std::int64_t t_us = 0;
@@ -80,7 +81,7 @@ struct MarkerCost {
     } else {
       interpolate_theta(*enc, t_us, index, tau[0], th);
     }
-    const Eigen::Matrix<T, 3, 1> p = detail::model_point(*model, x, th.data());
+    const Eigen::Matrix<T, 3, 1> p = detail::model_point(*model, x, th.data(), site);
     for (int k = 0; k < 3; ++k) r[k] = (T(measured[k]) - p[k]) * T(kMToMm);
     return true;
   }
@@ -155,7 +156,7 @@ Problem make_problem(const NominalModel& model, const std::vector<AlignedSample>
   Problem P;
   P.loss = make_loss(options);
   for (const auto& s : points) {
-    MarkerCost c{&model, s.theta_r, Eigen::Vector3d(s.marker[0], s.marker[1], s.marker[2])};
+    MarkerCost c{&model, s.theta_r, Eigen::Vector3d(s.marker[0], s.marker[1], s.marker[2]), s.site};
     if (options.estimate_time_offset) {
       c.enc = &encoders->samples;
       c.t_us = s.utime_us;
@@ -416,7 +417,7 @@ void parameter_results(const SolveState& s, const Bounds& bounds, const Eigen::M
 // Everything the report says about the final solution: noise, covariance,
 // parameter statuses, singular values, degeneracies and correlations.
 void describe_solution(Problem& P, SolveState& s, const Bounds& bounds, const SolveOptions& options,
-                       Report& rep) {
+                       const std::vector<AlignedSample>& points, Report& rep) {
   const std::vector<int> est = s.estimated();
   rep.free_params = est.size();
   Eigen::VectorXd r;
@@ -428,6 +429,11 @@ void describe_solution(Problem& P, SolveState& s, const Bounds& bounds, const So
   parameter_results(s, bounds, cov, rep);
   detail::describe_degeneracies(J, est, s.held, sigma_mm, bounds, rep);
   rep.correlations = detail::correlations(cov, est, bounds.identifiability.correlation_threshold);
+  detail::ColumnMask estimable{};
+  for (int p = 0; p < kParams; ++p) estimable[p] = !bounds.params[p].fixed && !s.at_bound[p];
+  rep.observation_sets = detail::observation_sets(
+      J, points, estimable, s.tau_free,
+      std::max(sigma_mm, bounds.identifiability.noise_floor_m * kMToMm), bounds);
 }
 
 }  // namespace
@@ -452,7 +458,9 @@ Report calibrate(const NominalModel& model, const std::vector<AlignedSample>& po
   hold_unobservable(P, s, bounds, options, rep);
   mark_active_bounds(s, bounds);
   final_residuals(P, s, rep);
-  describe_solution(P, s, bounds, options, rep);
+  const auto per_marker = residuals_per_marker(points, rep.residual_after);
+  if (per_marker.size() > 1) rep.per_marker = per_marker;
+  describe_solution(P, s, bounds, options, points, rep);
   say("after calibration: RMS " + fmt("%.3f", rep.after.rms_m * kMToMm) + " mm");
   return rep;
 }
