@@ -184,6 +184,19 @@ TEST(CalibrationMarkers, TwoHandMarkersAndBaseMarkersIdentifyAllTwentyParameters
   EXPECT_NE(text.str().find("after, base marker 12"), std::string::npos);
 }
 
+// A second hand marker without base markers: Δθ5 and Δθ6 identified, Δθ1
+// still exactly traded against φz, so O0 stays turned by the held Δθ1.
+TEST(CalibrationMarkers, SecondHandMarkerIdentifiesJointsFiveAndSix) {
+  const MarkerRun r = calibrate_with(rig_layout(true, false));
+  EXPECT_EQ(r.report.params[kTheta5].status, ParamStatus::kIdentified);
+  EXPECT_EQ(r.report.params[kTheta6].status, ParamStatus::kIdentified);
+  EXPECT_EQ(r.report.params[kTheta1].status, ParamStatus::kHeld);
+  expect_identified_near_truth(r.report);
+  EXPECT_GT(r.palm.position_rms_m, 3e-3);
+  // Only the held Δθ1 (1.15° from the truth) is left in the orientation.
+  EXPECT_NEAR(r.palm.orientation_rms_rad, 1.15 * kDeg, 0.1 * kDeg);
+}
+
 // A camera → O0 transform measured independently (fixed in the bounds file,
 // here at the truth) identifies Δθ1 as the base markers do.
 TEST(CalibrationMarkers, FixedCameraTransformIdentifiesJointOne) {
