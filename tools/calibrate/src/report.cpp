@@ -6,11 +6,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "exodaq/calibration/python_plot.hpp"
 #include "exodaq/config/yaml_reader.hpp"
-
-#ifndef EXODAQ_CALIBRATE_PLOT_SCRIPT
-#define EXODAQ_CALIBRATE_PLOT_SCRIPT ""
-#endif
 
 namespace exodaq::calibration {
 
@@ -36,16 +33,6 @@ std::string stats_row(const std::string& name, const ErrorStats& s) {
     o << f("%9.3f", v * 1e3);
   }
   return o.str();
-}
-
-std::string quote_shell(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-bool file_exists(const std::string& p) {
-  return std::ifstream(p).good();
 }
 
 }  // namespace
@@ -202,31 +189,12 @@ void write_residual_csv(const std::string& path, const std::vector<std::int64_t>
 }
 
 bool plot_residuals(const std::string& csv, const std::string& png, std::string& message) {
-  std::string script;
-  if (const char* env = std::getenv("EXODAQ_CALIBRATE_PLOT")) script = env;
-  if (script.empty() || !file_exists(script)) script = EXODAQ_CALIBRATE_PLOT_SCRIPT;
-  if (script.empty() || !file_exists(script)) {
+  const std::string script = find_plot_script("EXODAQ_CALIBRATE_PLOT", "plot_residuals.py");
+  if (script.empty()) {
     message = "figure skipped: plot_residuals.py not found (set EXODAQ_CALIBRATE_PLOT)";
     return false;
   }
-  std::string python;
-  for (const char* candidate : {"python3", "/usr/bin/python3"}) {
-    const std::string probe = std::string(candidate) + " -c 'import matplotlib' >/dev/null 2>&1";
-    if (std::system(probe.c_str()) == 0) {
-      python = candidate;
-      break;
-    }
-  }
-  if (python.empty()) {
-    message = "figure skipped: no python3 with matplotlib (apt install python3-matplotlib)";
-    return false;
-  }
-  const std::string cmd =
-      python + " " + quote_shell(script) + " " + quote_shell(csv) + " " + quote_shell(png);
-  if (std::system(cmd.c_str()) != 0) {
-    message = "figure skipped: " + cmd + " failed";
-    return false;
-  }
+  if (!run_plot_script(script, {csv, png}, message)) return false;
   message = "residual figure written to " + png;
   return true;
 }
