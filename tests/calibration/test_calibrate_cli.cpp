@@ -1,6 +1,7 @@
 // `exodaq calibrate` end to end on generated CSVs (1 kHz encoders, 480 Hz mocap).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <fstream>
@@ -33,7 +34,8 @@ Result run(const std::string& args) {
 class CalibrateCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = ::testing::TempDir() + "/exodaq_calibrate_cli";
+    // Per process: other checkouts may run the same test at the same time.
+    dir_ = ::testing::TempDir() + "/exodaq_calibrate_cli_" + std::to_string(::getpid());
     std::system(("mkdir -p " + dir_).c_str());
     TrajectoryOptions o;
     o.marker_rate_hz = 480.0;
@@ -59,6 +61,7 @@ class CalibrateCli : public ::testing::Test {
     write_encoder_csv(dir_ + "/enc_multi.csv", multi.encoders);
     write_marker_csv(dir_ + "/mocap_multi.csv", multi.markers);
   }
+  static void TearDownTestSuite() { std::system(("rm -rf " + dir_).c_str()); }
   static std::string dir_;
 };
 std::string CalibrateCli::dir_;

@@ -2,6 +2,7 @@
 // 7 humerus markers, 100 Hz, a centre that rises by seed 001 Table II).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <fstream>
@@ -31,7 +32,7 @@ Result run(const std::string& args) {
 class ShoulderCorCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = ::testing::TempDir() + "/exodaq_shoulder_cor_cli";
+    dir_ = ::testing::TempDir() + "/exodaq_shoulder_cor_cli_" + std::to_string(::getpid());
     std::system(("mkdir -p " + dir_).c_str());
     shoulder_synth::Options o;
     o.occluded_fraction = 0.02;
@@ -42,6 +43,7 @@ class ShoulderCorCli : public ::testing::Test {
            "/capture.csv --torso 1,2,3,4,5 --humerus 11,12,13,14,15,16,17 --torso-axis 1,2 "
            "--humerus-axis 11,12";
   }
+  static void TearDownTestSuite() { std::system(("rm -rf " + dir_).c_str()); }
   static std::string dir_;
 };
 std::string ShoulderCorCli::dir_;
