@@ -69,6 +69,9 @@ struct TrajectoryOptions {
   double counts_per_rev = 10000.0;
   int frozen_joint = -1;             // 0-based joint that never moves
   double marker_clock_offset_s = 0;  // marker utime = true time + offset
+  // Markers seen at every marker time (empty: seed 000's one marker at the
+  // tool point, written with marker_id 3).
+  MarkerLayout layout;
 };
 
 struct SyntheticData {
@@ -113,6 +116,8 @@ inline SyntheticData make_data(const TrajectoryOptions& o,
   }
   std::mt19937_64 rng(1000 + o.seed);
   std::normal_distribution<double> noise(0.0, o.marker_noise_m);
+  const std::vector<MarkerSite> sites =
+      o.layout.sites.empty() ? std::vector<MarkerSite>{MarkerSite{}} : o.layout.sites;
   const double first = 0.25;  // s: markers start after the encoders
   const int n_mk = static_cast<int>((o.duration_s - 2 * first) * o.marker_rate_hz);
   for (int k = 0; k < n_mk; ++k) {
@@ -121,17 +126,36 @@ inline SyntheticData make_data(const TrajectoryOptions& o,
     for (int j = 0; j < 6; ++j) {
       theta_r[j] = joint_angle(j, t, o.seed, o.frozen_joint) - truth[kTheta1 + j];
     }
-    const Eigen::Vector3d p = predict_marker(model, truth, theta_r);
-    MarkerSample m;
-    m.utime_us =
-        kEpochUs + static_cast<std::int64_t>(std::llround((t + o.marker_clock_offset_s) * 1e6));
-    m.present = true;
-    m.x = p.x() + noise(rng);
-    m.y = p.y() + noise(rng);
-    m.z = p.z() + noise(rng);
-    d.markers.samples.push_back(m);
+    for (const MarkerSite& site : sites) {
+      const Eigen::Vector3d p = predict_marker(model, truth, theta_r, site);
+      MarkerSample m;
+      m.utime_us =
+          kEpochUs + static_cast<std::int64_t>(std::llround((t + o.marker_clock_offset_s) * 1e6));
+      m.present = true;
+      m.marker_id = site.id;
+      m.x = p.x() + noise(rng);
+      m.y = p.y() + noise(rng);
+      m.z = p.z() + noise(rng);
+      d.markers.samples.push_back(m);
+    }
   }
   return d;
+}
+
+// Seed 000's hand marker at the palm (id 3), a second hand marker 70 mm up
+// the forearm and 20 mm off its axis (id 4), and three markers on the base
+// (ids 10-12), as in config/calibration/markers_example.yaml.
+inline MarkerLayout rig_layout(bool second_hand, bool base) {
+  MarkerLayout l;
+  l.source = "synthetic-layout";
+  l.sites.push_back({3, MarkerMount::kHand, {0.0, 0.0, 0.0}});
+  if (second_hand) l.sites.push_back({4, MarkerMount::kHand, {0.020, 0.0, -0.070}});
+  if (base) {
+    l.sites.push_back({10, MarkerMount::kBase, {-0.120, 0.080, -0.060}});
+    l.sites.push_back({11, MarkerMount::kBase, {-0.120, -0.080, -0.060}});
+    l.sites.push_back({12, MarkerMount::kBase, {-0.180, 0.0, 0.050}});
+  }
+  return l;
 }
 
 // Bounds around Table 4 "Guess" (config/calibration/bounds_seed000.yaml).
@@ -170,7 +194,7 @@ inline void write_marker_csv(const std::string& path, const MarkerSeries& m) {
     } else {
       o << ",,";
     }
-    o << ",3\n";
+    o << "," << (s.marker_id < 0 ? 3 : s.marker_id) << "\n";
   }
 }
 

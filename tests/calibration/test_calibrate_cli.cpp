@@ -1,6 +1,7 @@
 // `exodaq calibrate` end to end on generated CSVs (1 kHz encoders, 480 Hz mocap).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <fstream>
@@ -33,7 +34,8 @@ Result run(const std::string& args) {
 class CalibrateCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = ::testing::TempDir() + "/exodaq_calibrate_cli";
+    // Per process: other checkouts may run the same test at the same time.
+    dir_ = ::testing::TempDir() + "/exodaq_calibrate_cli_" + std::to_string(::getpid());
     std::system(("mkdir -p " + dir_).c_str());
     TrajectoryOptions o;
     o.marker_rate_hz = 480.0;
@@ -51,7 +53,15 @@ class CalibrateCli : public ::testing::Test {
     const SyntheticData val = make_data(o);
     write_encoder_csv(dir_ + "/enc_val.csv", val.encoders);
     write_marker_csv(dir_ + "/mocap_val.csv", val.markers);
+    // Five markers (config/calibration/markers_example.yaml) at 100 Hz.
+    o.seed = 1;
+    o.marker_rate_hz = 100.0;
+    o.layout = rig_layout(true, true);
+    const SyntheticData multi = make_data(o);
+    write_encoder_csv(dir_ + "/enc_multi.csv", multi.encoders);
+    write_marker_csv(dir_ + "/mocap_multi.csv", multi.markers);
   }
+  static void TearDownTestSuite() { std::system(("rm -rf " + dir_).c_str()); }
   static std::string dir_;
 };
 std::string CalibrateCli::dir_;
@@ -92,6 +102,45 @@ TEST_F(CalibrateCli, WritesACalibrationTheDaemonLoads) {
   EXPECT_TRUE(std::ifstream(dir_ + "/residuals_residuals.csv").good());
 }
 
+// Issue 18: hand and base markers identify all 20 parameters, Δθ1 included.
+TEST_F(CalibrateCli, MarkerLayoutIdentifiesEveryParameter) {
+  const std::string src = EXODAQ_SOURCE_DIR;
+  const std::string out = dir_ + "/calibration_multi.yaml";
+  const Result r =
+      run("calibrate --encoders " + dir_ + "/enc_multi.csv --markers " + dir_ +
+          "/mocap_multi.csv --bounds " + src +
+          "/config/calibration/bounds_seed000.yaml --marker-layout " + src +
+          "/config/calibration/markers_example.yaml --out " + out + " --max-points 400 --quiet");
+  std::cout << r.output;
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(
+      r.output.find("20000 marker samples, 2000 used (skipped: 18000 thinned (--max-points))"),
+      std::string::npos);
+  EXPECT_NE(r.output.find("Identifiability by observations"), std::string::npos);
+  EXPECT_NE(r.output.find("+ base markers 10, 11, 12"), std::string::npos);
+  EXPECT_NE(r.output.find("Identifiability: every free parameter is identifiable"),
+            std::string::npos);
+  const config::Calibration c = config::load_calibration_file(out);
+  const ParamVector truth = table4_results();
+  for (int j = 0; j < 6; ++j) {
+    EXPECT_NEAR(c.encoder_offset_rad[j], truth[kTheta1 + j], 0.1 * kDeg) << "joint " << j + 1;
+  }
+  EXPECT_NEAR(c.dh.a5, truth[kDa5], 0.5e-3);
+  EXPECT_NE(c.provenance.notes.find("marker layout"), std::string::npos);
+  EXPECT_EQ(c.provenance.notes.find("held at prior"), std::string::npos) << c.provenance.notes;
+}
+
+TEST_F(CalibrateCli, MarkerLayoutAndMarkerIdExcludeEachOther) {
+  const std::string src = EXODAQ_SOURCE_DIR;
+  const Result r =
+      run("calibrate --encoders " + dir_ + "/enc_multi.csv --markers " + dir_ +
+          "/mocap_multi.csv --bounds " + src +
+          "/config/calibration/bounds_seed000.yaml --marker-layout " + src +
+          "/config/calibration/markers_example.yaml --marker-id 3 --out " + dir_ + "/z.yaml");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("excludes"), std::string::npos) << r.output;
+}
+
 TEST_F(CalibrateCli, MalformedMocapRowIsReportedWithItsLine) {
   const std::string src = EXODAQ_SOURCE_DIR;
   {
@@ -102,7 +151,8 @@ TEST_F(CalibrateCli, MalformedMocapRowIsReportedWithItsLine) {
       run("calibrate --encoders " + dir_ + "/enc.csv --markers " + dir_ + "/bad.csv --bounds " +
           src + "/config/calibration/bounds_seed000.yaml --out " + dir_ + "/x.yaml");
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.output.find(dir_ + "/bad.csv:3: expected 4 fields, found 3"), std::string::npos)
+  EXPECT_NE(r.output.find("exodaq calibrate: " + dir_ + "/bad.csv:3: expected 4 fields, found 3"),
+            std::string::npos)
       << r.output;
 }
 

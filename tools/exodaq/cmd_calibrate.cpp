@@ -1,12 +1,15 @@
-// exodaq calibrate: offline kinematic calibration (seed 000 §4, issue 8).
+// exodaq calibrate: offline kinematic calibration (seed 000 §4, issues 8 and 18).
 //   exodaq calibrate --encoders LOG.csv --markers MOCAP.csv --bounds B.yaml --out cal.yaml
-//                    [--model M] [--validate [ENC.csv,]MOCAP.csv ...] [--robust huber|cauchy]
+//                    [--model M] [--marker-layout L.yaml | --marker-id N]
+//                    [--validate [ENC.csv,]MOCAP.csv ...] [--robust huber|cauchy]
 //                    [--estimate-time-offset] [--plot out.png] [--max-points N]
 // docs/calibration.md describes the procedure, the files and the report.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,7 +27,7 @@ namespace {
 namespace cal = exodaq::calibration;
 
 struct CalibrateOptions {
-  std::string encoders, markers, model, bounds, out, plot, residuals;
+  std::string encoders, markers, model, bounds, out, plot, residuals, marker_layout;
   std::vector<std::string> validate;
   std::string robust = "none";
   double robust_scale_mm = 1.0;
@@ -33,6 +36,23 @@ struct CalibrateOptions {
   int marker_id = -1;
   double max_gap_ms = 5.0;
   bool quiet = false;
+};
+
+// What the command reads besides the data.
+struct Setup {
+  std::string model_path;
+  cal::NominalModel nominal;
+  cal::Bounds bounds;
+  std::optional<cal::MarkerLayout> layout;
+};
+
+// The training data and the validation sets, aligned.
+struct Data {
+  cal::EncoderSeries encoders;
+  std::vector<cal::AlignedSample> points;
+  std::vector<cal::ValidationResult> validation;
+  std::vector<std::vector<std::int64_t>> validation_utime;
+  std::vector<std::string> inputs;  // for the provenance
 };
 
 std::string utc_now() {
@@ -50,23 +70,31 @@ std::string mm(double m) {
   return buf;
 }
 
-int run_calibrate(const CalibrateOptions& o) {
-  auto progress = [&](const std::string& s) {
-    if (!o.quiet) std::cout << s << std::endl;
-  };
-  const std::string model_path = o.model.empty() ? config::default_model_path() : o.model;
-  const config::KinematicModel model = config::load_model_file(model_path);
-  const cal::NominalModel nominal = cal::nominal_from_chain(model.chain);
-  const cal::Bounds bounds = cal::load_bounds_file(o.bounds);
-  progress("model " + model_path + " (" + model.name + "), bounds " + o.bounds);
+Setup load_setup(const CalibrateOptions& o) {
+  Setup s;
+  s.model_path = o.model.empty() ? config::default_model_path() : o.model;
+  const config::KinematicModel model = config::load_model_file(s.model_path);
+  s.nominal = cal::nominal_from_chain(model.chain);
+  s.bounds = cal::load_bounds_file(o.bounds);
+  if (!o.marker_layout.empty()) s.layout = cal::load_marker_layout_file(o.marker_layout);
+  if (!o.quiet) {
+    std::cout << "model " << s.model_path << " (" << model.name << "), bounds " << o.bounds
+              << (s.layout ? ", marker layout " + o.marker_layout : std::string()) << std::endl;
+  }
+  return s;
+}
 
+cal::SolveOptions solve_options(const CalibrateOptions& o) {
   cal::SolveOptions so;
   if (o.robust == "huber") so.loss = cal::RobustLoss::kHuber;
   if (o.robust == "cauchy") so.loss = cal::RobustLoss::kCauchy;
   so.loss_scale_m = o.robust_scale_mm * 1e-3;
   so.estimate_time_offset = o.estimate_time_offset;
-  so.progress = progress;
+  if (!o.quiet) so.progress = [](const std::string& s) { std::cout << s << std::endl; };
+  return so;
+}
 
+cal::AlignmentOptions alignment_options(const CalibrateOptions& o, const cal::Bounds& bounds) {
   cal::AlignmentOptions ao;
   ao.max_points = o.max_points;
   ao.max_gap_us = static_cast<std::int64_t>(o.max_gap_ms * 1000.0);
@@ -74,100 +102,133 @@ int run_calibrate(const CalibrateOptions& o) {
     ao.guard_us = static_cast<std::int64_t>(
         1e6 * std::max(std::abs(bounds.time_offset.lower_s), std::abs(bounds.time_offset.upper_s)));
   }
+  return ao;
+}
 
-  const cal::EncoderSeries enc = cal::read_encoder_log(o.encoders);
-  const cal::MarkerSeries mk = cal::read_marker_csv(o.markers, o.marker_id);
-  progress("encoders " + o.encoders + ": " + std::to_string(enc.samples.size()) + " samples");
-  cal::AlignmentStats st;
-  const auto points = cal::align(enc, mk, ao, st);
-  cal::print_alignment(std::cout, o.markers, st);
+// The marker CSV: the layout's markers, or one marker (--marker-id).
+cal::MarkerSeries read_markers(const std::string& path, const CalibrateOptions& o, const Setup& s) {
+  return s.layout ? cal::read_marker_csv_ids(path, s.layout->ids())
+                  : cal::read_marker_csv(path, o.marker_id);
+}
 
-  const cal::Report report = cal::calibrate(nominal, points, bounds, so, &enc);
-  const cal::ParamVector x = cal::estimates(report);
-  const cal::ParamVector x0 = cal::initial_params(bounds);
+std::vector<cal::AlignedSample> align_points(const cal::EncoderSeries& enc,
+                                             const cal::MarkerSeries& markers,
+                                             const cal::AlignmentOptions& ao, const Setup& s,
+                                             const std::string& label, cal::AlignmentStats& st) {
+  auto points = cal::align(enc, markers, ao, st);
+  if (s.layout) cal::apply_layout(points, *s.layout);
+  cal::print_alignment(std::cout, label, st);
+  return points;
+}
 
-  std::vector<cal::ValidationResult> validation;
-  std::vector<std::vector<std::int64_t>> validation_utime;
-  std::vector<std::string> inputs = {o.encoders, o.markers};
-  for (const std::string& v : o.validate) {
-    const auto comma = v.find(',');
-    const std::string venc_path = comma == std::string::npos ? o.encoders : v.substr(0, comma);
-    const std::string vmk_path = comma == std::string::npos ? v : v.substr(comma + 1);
-    const cal::EncoderSeries venc =
-        venc_path == o.encoders ? enc : cal::read_encoder_log(venc_path);
-    const cal::MarkerSeries vmk = cal::read_marker_csv(vmk_path, o.marker_id);
-    cal::ValidationResult r;
-    r.name = vmk_path;
-    cal::AlignmentOptions vao = ao;
-    vao.guard_us = 0;
-    auto vpts = cal::align(venc, vmk, vao, r.alignment);
-    cal::print_alignment(std::cout, "validate " + vmk_path, r.alignment);
-    if (report.time_offset_s) {
-      // Apply the estimated clock offset: shift the marker times.
-      cal::MarkerSeries shifted = vmk;
-      for (auto& s : shifted.samples) {
-        s.utime_us += static_cast<std::int64_t>(std::llround(*report.time_offset_s * 1e6));
-      }
-      vpts = cal::align(venc, shifted, vao, r.alignment);
+// Apply the estimated clock offset to a validation set: shift the marker times.
+cal::MarkerSeries shifted(cal::MarkerSeries m, const cal::Report& report) {
+  if (report.time_offset_s) {
+    for (auto& s : m.samples) {
+      s.utime_us += static_cast<std::int64_t>(std::llround(*report.time_offset_s * 1e6));
     }
-    r.points = vpts.size();
-    r.before = cal::evaluate(nominal, x0, vpts, &r.residual_before);
-    r.after = cal::evaluate(nominal, x, vpts, &r.residual_after);
-    std::vector<std::int64_t> t;
-    for (const auto& p : vpts) t.push_back(p.utime_us);
-    validation_utime.push_back(std::move(t));
-    validation.push_back(std::move(r));
-    inputs.push_back("validate: " + venc_path + " + " + vmk_path);
   }
+  return m;
+}
 
-  cal::print_report(std::cout, report, validation);
+void validate_one(const std::string& spec, const CalibrateOptions& o, const Setup& s,
+                  const cal::Report& report, Data& d) {
+  const auto comma = spec.find(',');
+  const std::string venc_path = comma == std::string::npos ? o.encoders : spec.substr(0, comma);
+  const std::string vmk_path = comma == std::string::npos ? spec : spec.substr(comma + 1);
+  const cal::EncoderSeries venc =
+      venc_path == o.encoders ? d.encoders : cal::read_encoder_log(venc_path);
+  const cal::MarkerSeries vmk = shifted(read_markers(vmk_path, o, s), report);
+  cal::AlignmentOptions vao = alignment_options(o, s.bounds);
+  vao.guard_us = 0;
+  cal::ValidationResult r;
+  r.name = vmk_path;
+  const auto vpts = align_points(venc, vmk, vao, s, "validate " + vmk_path, r.alignment);
+  r.points = vpts.size();
+  r.before = cal::evaluate(s.nominal, cal::initial_params(s.bounds), vpts, &r.residual_before);
+  r.after = cal::evaluate(s.nominal, cal::estimates(report), vpts, &r.residual_after);
+  std::vector<std::int64_t> t;
+  for (const auto& p : vpts) t.push_back(p.utime_us);
+  d.validation_utime.push_back(std::move(t));
+  d.validation.push_back(std::move(r));
+  d.inputs.push_back("validate: " + venc_path + " + " + vmk_path);
+}
 
-  config::Calibration out = cal::to_calibration(x);
-  auto& p = out.provenance;
-  p.created_by = std::string("exodaq calibrate ") + kVersion + " (" + kGitDescribe + ")";
-  p.date = utc_now();
-  p.model = model_path;
-  p.inputs = inputs;
-  p.rms_before_m = report.before.rms_m;
-  p.rms_after_m = report.after.rms_m;
-  p.samples = static_cast<int>(report.points);
+std::string provenance_notes(const CalibrateOptions& o, const Setup& s, const cal::Report& report,
+                             const Data& d) {
   std::string notes = "bounds " + o.bounds + "; robust loss " + o.robust;
+  if (s.layout) notes += "; marker layout " + o.marker_layout;
   std::string held, gauge, bound;
   for (int k = 0; k < cal::kParams; ++k) {
-    const auto s = report.params[k].status;
+    const auto st = report.params[k].status;
     const std::string name = cal::param_key(k);
-    if (s == cal::ParamStatus::kHeld) held += (held.empty() ? "" : ", ") + name;
-    if (s == cal::ParamStatus::kGaugeDependent) gauge += (gauge.empty() ? "" : ", ") + name;
-    if (s == cal::ParamStatus::kAtBound) bound += (bound.empty() ? "" : ", ") + name;
+    if (st == cal::ParamStatus::kHeld) held += (held.empty() ? "" : ", ") + name;
+    if (st == cal::ParamStatus::kGaugeDependent) gauge += (gauge.empty() ? "" : ", ") + name;
+    if (st == cal::ParamStatus::kAtBound) bound += (bound.empty() ? "" : ", ") + name;
   }
   if (!held.empty()) notes += "; unidentifiable, held at prior: " + held;
   if (!gauge.empty()) notes += "; gauge-dependent (follow the held priors): " + gauge;
   if (!bound.empty()) notes += "; at bound: " + bound;
   if (report.time_offset_s) notes += "; time offset " + mm(*report.time_offset_s) + " ms";
-  for (const auto& v : validation) {
+  for (const auto& v : d.validation) {
     notes += "; validate " + v.name + ": RMS " + mm(v.after.rms_m) + " mm";
   }
-  p.notes = notes;
+  return notes;
+}
+
+void write_calibration(const CalibrateOptions& o, const Setup& s, const cal::Report& report,
+                       const Data& d) {
+  config::Calibration out = cal::to_calibration(cal::estimates(report));
+  auto& p = out.provenance;
+  p.created_by = std::string("exodaq calibrate ") + kVersion + " (" + kGitDescribe + ")";
+  p.date = utc_now();
+  p.model = s.model_path;
+  p.inputs = d.inputs;
+  p.rms_before_m = report.before.rms_m;
+  p.rms_after_m = report.after.rms_m;
+  p.samples = static_cast<int>(report.points);
+  p.notes = provenance_notes(o, s, report, d);
   config::write_calibration_file(o.out, out);
   std::cout << "\ncalibration written to " << o.out << " (RMS " << mm(report.before.rms_m) << " -> "
             << mm(report.after.rms_m) << " mm)\n";
+}
 
-  if (!o.plot.empty() || !o.residuals.empty()) {
-    std::string csv = o.residuals;
-    if (csv.empty()) {
-      const auto dot = o.plot.rfind('.');
-      csv = (dot == std::string::npos ? o.plot : o.plot.substr(0, dot)) + "_residuals.csv";
-    }
-    std::vector<std::int64_t> t;
-    for (const auto& pt : points) t.push_back(pt.utime_us);
-    cal::write_residual_csv(csv, t, report, validation, validation_utime);
-    std::cout << "residuals written to " << csv << "\n";
-    if (!o.plot.empty()) {
-      std::string message;
-      cal::plot_residuals(csv, o.plot, message);
-      std::cout << message << "\n";
-    }
+void write_residuals(const CalibrateOptions& o, const cal::Report& report, const Data& d) {
+  if (o.plot.empty() && o.residuals.empty()) return;
+  std::string csv = o.residuals;
+  if (csv.empty()) {
+    const auto dot = o.plot.rfind('.');
+    csv = (dot == std::string::npos ? o.plot : o.plot.substr(0, dot)) + "_residuals.csv";
   }
+  std::vector<std::int64_t> t;
+  for (const auto& pt : d.points) t.push_back(pt.utime_us);
+  cal::write_residual_csv(csv, t, report, d.validation, d.validation_utime);
+  std::cout << "residuals written to " << csv << "\n";
+  if (!o.plot.empty()) {
+    std::string message;
+    cal::plot_residuals(csv, o.plot, message);
+    std::cout << message << "\n";
+  }
+}
+
+int run_calibrate(const CalibrateOptions& o) {
+  const Setup s = load_setup(o);
+  Data d;
+  d.encoders = cal::read_encoder_log(o.encoders);
+  const cal::MarkerSeries mk = read_markers(o.markers, o, s);
+  if (!o.quiet) {
+    std::cout << "encoders " << o.encoders << ": " << d.encoders.samples.size() << " samples"
+              << std::endl;
+  }
+  cal::AlignmentStats st;
+  d.points = align_points(d.encoders, mk, alignment_options(o, s.bounds), s, o.markers, st);
+  d.inputs = {o.encoders, o.markers};
+  const cal::Report report =
+      cal::calibrate(s.nominal, d.points, s.bounds, solve_options(o), &d.encoders);
+  for (const std::string& v : o.validate) validate_one(v, o, s, report, d);
+  cal::print_report(std::cout, report, d.validation);
+  write_calibration(o, s, report, d);
+  write_residuals(o, report, d);
   return kExitOk;
 }
 
@@ -197,12 +258,25 @@ EXODAQ_REGISTER_COMMAND(
                    "estimate a constant offset between the two clocks");
       app.add_option("--plot", o->plot, "residual figure (PNG; needs python3-matplotlib)");
       app.add_option("--residuals", o->residuals, "residual CSV (default: next to --plot)");
-      app.add_option("--max-points", o->max_points, "use at most N points, evenly spread");
-      app.add_option("--marker-id", o->marker_id, "marker to use when the CSV holds several");
+      app.add_option("--max-points", o->max_points,
+                     "use at most N points of each marker, evenly spread");
+      auto* id =
+          app.add_option("--marker-id", o->marker_id, "marker to use when the CSV holds several");
+      app.add_option("--marker-layout", o->marker_layout,
+                     "several markers: which marker_id sits where on the hand and on the base "
+                     "(YAML, config/calibration/markers_example.yaml)")
+          ->excludes(id);
       app.add_option("--max-gap-ms", o->max_gap_ms,
                      "largest encoder gap to interpolate across (default 5 ms)");
       app.add_flag("--quiet", o->quiet, "no solver progress");
-      return [o] { return run_calibrate(*o); };
+      return [o]() -> int {
+        try {
+          return run_calibrate(*o);
+        } catch (const std::exception& e) {
+          std::fprintf(stderr, "exodaq calibrate: %s\n", e.what());
+          return kExitUsage;
+        }
+      };
     });
 
 }  // namespace exodaq::tools

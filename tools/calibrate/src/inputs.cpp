@@ -8,6 +8,7 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <stdexcept>
 
 #include "exodaq/config/yaml_reader.hpp"
 
@@ -182,148 +183,281 @@ EncoderSeries read_encoder_log(const std::string& path) {
                         "docs/calibration.md). LCM logs are read once replay support lands.");
 }
 
-MarkerSeries parse_marker_csv(const std::string& text, const std::string& name, int marker_id) {
+namespace {
+
+// Which markers a parse keeps: one id (or, with -1, the only one in the
+// file), or a set of ids.
+struct MarkerSelection {
+  int single = -1;
+  std::vector<int> ids;
+  bool many = false;
+  bool keeps(int id) const {
+    return many ? std::find(ids.begin(), ids.end(), id) != ids.end() : single < 0 || id == single;
+  }
+};
+
+void check_fields(const CsvLine& l, const CsvLine& head, const std::string& name) {
+  if (l.fields.size() != head.fields.size()) {
+    throw ConfigError(name, l.number,
+                      "expected " + std::to_string(head.fields.size()) + " fields, found " +
+                          std::to_string(l.fields.size()));
+  }
+}
+
+// x/y/z of a row: all numbers (mm) or all missing.
+void read_position(const CsvLine& l, const std::map<std::string, std::size_t>& cols,
+                   const std::string& name, MarkerSample& s) {
+  const auto x = parse_double(l.fields[cols.at("x_mm")], name, l.number, "x_mm", true);
+  const auto y = parse_double(l.fields[cols.at("y_mm")], name, l.number, "y_mm", true);
+  const auto z = parse_double(l.fields[cols.at("z_mm")], name, l.number, "z_mm", true);
+  const int seen = static_cast<int>(x.has_value()) + static_cast<int>(y.has_value()) +
+                   static_cast<int>(z.has_value());
+  if (seen != 0 && seen != 3) {
+    throw ConfigError(name, l.number,
+                      "x_mm, y_mm, z_mm must all be numbers or all empty/nan (marker missing)");
+  }
+  s.present = seen == 3;
+  if (s.present) {
+    s.x = *x * 1e-3;
+    s.y = *y * 1e-3;
+    s.z = *z * 1e-3;
+  }
+}
+
+// Without --marker-id, a file with a marker_id column must hold one id.
+class SingleIdCheck {
+ public:
+  void check(int id, int line, const std::string& name) {
+    if (first_ < 0) {
+      first_ = id;
+      first_line_ = line;
+    } else if (id != first_) {
+      throw ConfigError(name, line,
+                        "marker_id " + std::to_string(id) + " differs from " +
+                            std::to_string(first_) + " (line " + std::to_string(first_line_) +
+                            "): select one marker with --marker-id");
+    }
+  }
+
+ private:
+  int first_ = -1;
+  int first_line_ = 0;
+};
+
+// utime_us must increase from row to row of each marker.
+class TimeOrderCheck {
+ public:
+  void check(const MarkerSample& s, int line, const std::string& name) {
+    const auto it = last_.find(s.marker_id);
+    if (it != last_.end() && s.utime_us <= it->second) {
+      throw ConfigError(name, line,
+                        "utime_us " + std::to_string(s.utime_us) +
+                            " does not increase (previous row " + std::to_string(it->second) + ")");
+    }
+    last_[s.marker_id] = s.utime_us;
+  }
+  bool has(int id) const { return last_.count(id) > 0; }
+
+ private:
+  std::map<int, std::int64_t> last_;
+};
+
+void check_all_ids_present(const MarkerSelection& sel, const TimeOrderCheck& order,
+                           const std::string& name) {
+  std::string missing;
+  for (int id : sel.ids) {
+    if (!order.has(id)) missing += (missing.empty() ? "" : ", ") + std::to_string(id);
+  }
+  if (!missing.empty()) {
+    throw ConfigError(name, 0, "no samples of marker_id " + missing);
+  }
+}
+
+MarkerSeries parse_markers(const std::string& text, const std::string& name,
+                           const MarkerSelection& sel) {
   const auto lines = csv_lines(text);
   if (lines.empty()) throw ConfigError(name, 0, "empty file (no header)");
   const auto cols = header(lines[0], name, kMarkerRequired, kMarkerOptional);
   const bool has_id = cols.count("marker_id") > 0;
+  if (sel.many && !has_id) {
+    throw ConfigError(name, lines[0].number, "several markers need the 'marker_id' column");
+  }
   MarkerSeries out;
   out.source = name;
-  int first_id = -1;
-  int first_id_line = 0;
-  std::int64_t last_time = 0;
-  bool have_last = false;
+  SingleIdCheck single;
+  TimeOrderCheck order;
   for (std::size_t k = 1; k < lines.size(); ++k) {
     const CsvLine& l = lines[k];
-    if (l.fields.size() != lines[0].fields.size()) {
-      throw ConfigError(name, l.number,
-                        "expected " + std::to_string(lines[0].fields.size()) + " fields, found " +
-                            std::to_string(l.fields.size()));
-    }
+    check_fields(l, lines[0], name);
     MarkerSample s;
     s.utime_us = parse_int(l.fields[cols.at("utime_us")], name, l.number, "utime_us");
     if (has_id) {
       s.marker_id =
           static_cast<int>(parse_int(l.fields[cols.at("marker_id")], name, l.number, "marker_id"));
-      if (marker_id < 0) {
-        if (first_id < 0) {
-          first_id = s.marker_id;
-          first_id_line = l.number;
-        } else if (s.marker_id != first_id) {
-          throw ConfigError(name, l.number,
-                            "marker_id " + std::to_string(s.marker_id) + " differs from " +
-                                std::to_string(first_id) + " (line " +
-                                std::to_string(first_id_line) +
-                                "): select one marker with --marker-id");
-        }
-      } else if (s.marker_id != marker_id) {
+      if (!sel.many && sel.single < 0) single.check(s.marker_id, l.number, name);
+      if (!sel.keeps(s.marker_id)) {
+        ++out.other_ids;
         continue;
       }
     }
-    const auto x = parse_double(l.fields[cols.at("x_mm")], name, l.number, "x_mm", true);
-    const auto y = parse_double(l.fields[cols.at("y_mm")], name, l.number, "y_mm", true);
-    const auto z = parse_double(l.fields[cols.at("z_mm")], name, l.number, "z_mm", true);
-    const int seen = static_cast<int>(x.has_value()) + static_cast<int>(y.has_value()) +
-                     static_cast<int>(z.has_value());
-    if (seen != 0 && seen != 3) {
-      throw ConfigError(name, l.number,
-                        "x_mm, y_mm, z_mm must all be numbers or all empty/nan (marker missing)");
-    }
-    s.present = seen == 3;
-    if (s.present) {
-      s.x = *x * 1e-3;
-      s.y = *y * 1e-3;
-      s.z = *z * 1e-3;
-    }
-    if (have_last && s.utime_us <= last_time) {
-      throw ConfigError(name, l.number,
-                        "utime_us " + std::to_string(s.utime_us) +
-                            " does not increase (previous row " + std::to_string(last_time) + ")");
-    }
-    last_time = s.utime_us;
-    have_last = true;
+    read_position(l, cols, name, s);
+    order.check(s, l.number, name);
     out.samples.push_back(s);
   }
+  if (sel.many) check_all_ids_present(sel, order, name);
   if (out.samples.empty()) {
     throw ConfigError(name, 0,
-                      marker_id >= 0 ? "no samples of marker_id " + std::to_string(marker_id)
-                                     : std::string("no marker samples"));
+                      sel.single >= 0 ? "no samples of marker_id " + std::to_string(sel.single)
+                                      : std::string("no marker samples"));
   }
   return out;
+}
+
+// Encoder samples bracketing [lo_t, hi_t] must be valid and without a gap.
+enum class Bracket { kOk, kOutside, kGap, kInvalid };
+
+class EncoderIndex {
+ public:
+  explicit EncoderIndex(const EncoderSeries& enc)
+      : e_(enc.samples), invalid_before_(e_.size() + 1) {
+    // invalid_before_[i]: number of invalid samples among e[0..i-1].
+    for (std::size_t i = 0; i < e_.size(); ++i) {
+      invalid_before_[i + 1] = invalid_before_[i] + (e_[i].valid() ? 0 : 1);
+    }
+  }
+
+  Bracket check(std::int64_t lo_t, std::int64_t hi_t, std::int64_t max_gap_us) const {
+    if (e_.empty() || lo_t < e_.front().utime_us || hi_t > e_.back().utime_us) {
+      return Bracket::kOutside;
+    }
+    auto lo_it = std::lower_bound(e_.begin(), e_.end(), lo_t, by_time);
+    if (lo_it->utime_us > lo_t) --lo_it;
+    auto hi_it = std::lower_bound(e_.begin(), e_.end(), hi_t, by_time);
+    const auto lo = static_cast<std::size_t>(lo_it - e_.begin());
+    const auto hi = static_cast<std::size_t>(hi_it - e_.begin());
+    for (std::size_t i = lo; i < hi; ++i) {
+      if (e_[i + 1].utime_us - e_[i].utime_us > max_gap_us) return Bracket::kGap;
+    }
+    return invalid_before_[hi + 1] - invalid_before_[lo] != 0 ? Bracket::kInvalid : Bracket::kOk;
+  }
+
+  // θᴿ linearly interpolated at t (inside the log).
+  AlignedSample interpolate(std::int64_t t) const {
+    auto it = std::lower_bound(e_.begin(), e_.end(), t, by_time);
+    std::size_t i1 = static_cast<std::size_t>(it - e_.begin());
+    std::size_t i0 = i1;
+    if (e_[i1].utime_us > t) i0 = i1 - 1;
+    AlignedSample a;
+    a.utime_us = t;
+    a.encoder_index = static_cast<int>(i0);
+    const double span = static_cast<double>(e_[i1].utime_us - e_[i0].utime_us);
+    const double w = span > 0 ? static_cast<double>(t - e_[i0].utime_us) / span : 0.0;
+    for (int j = 0; j < kJoints; ++j) {
+      a.theta_r[j] = (1.0 - w) * e_[i0].theta_r[j] + w * e_[i1].theta_r[j];
+    }
+    return a;
+  }
+
+ private:
+  static bool by_time(const EncoderSample& s, std::int64_t t) { return s.utime_us < t; }
+  const std::vector<EncoderSample>& e_;
+  std::vector<std::size_t> invalid_before_;
+};
+
+void count_skip(Bracket b, AlignmentStats& stats) {
+  if (b == Bracket::kOutside) ++stats.outside_encoder_log;
+  if (b == Bracket::kGap) ++stats.encoder_gap;
+  if (b == Bracket::kInvalid) ++stats.unhomed_or_faulted;
+}
+
+// At most `max_points` evenly spread points of each marker id, order kept.
+std::vector<AlignedSample> thin_per_marker(const std::vector<AlignedSample>& in,
+                                           std::size_t max_points) {
+  std::map<int, std::vector<std::size_t>> by_id;
+  for (std::size_t i = 0; i < in.size(); ++i) by_id[in[i].site.id].push_back(i);
+  std::vector<bool> keep(in.size(), false);
+  for (const auto& [id, idx] : by_id) {
+    if (idx.size() <= max_points) {
+      for (std::size_t i : idx) keep[i] = true;
+      continue;
+    }
+    const double step = static_cast<double>(idx.size()) / static_cast<double>(max_points);
+    for (std::size_t k = 0; k < max_points; ++k) {
+      keep[idx[static_cast<std::size_t>(std::floor(static_cast<double>(k) * step))]] = true;
+    }
+  }
+  std::vector<AlignedSample> out;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    if (keep[i]) out.push_back(in[i]);
+  }
+  return out;
+}
+
+}  // namespace
+
+MarkerSeries parse_marker_csv(const std::string& text, const std::string& name, int marker_id) {
+  MarkerSelection sel;
+  sel.single = marker_id;
+  return parse_markers(text, name, sel);
 }
 
 MarkerSeries read_marker_csv(const std::string& path, int marker_id) {
   return parse_marker_csv(read_text(path), path, marker_id);
 }
 
+MarkerSeries parse_marker_csv_ids(const std::string& text, const std::string& name,
+                                  const std::vector<int>& ids) {
+  MarkerSelection sel;
+  sel.ids = ids;
+  sel.many = true;
+  return parse_markers(text, name, sel);
+}
+
+MarkerSeries read_marker_csv_ids(const std::string& path, const std::vector<int>& ids) {
+  return parse_marker_csv_ids(read_text(path), path, ids);
+}
+
 std::vector<AlignedSample> align(const EncoderSeries& enc, const MarkerSeries& markers,
                                  const AlignmentOptions& options, AlignmentStats& stats) {
   stats = AlignmentStats{};
   stats.marker_samples = markers.samples.size();
-  const auto& e = enc.samples;
-  // invalid_before[i]: number of invalid samples among e[0..i-1].
-  std::vector<std::size_t> invalid_before(e.size() + 1, 0);
-  for (std::size_t i = 0; i < e.size(); ++i) {
-    invalid_before[i + 1] = invalid_before[i] + (e[i].valid() ? 0 : 1);
-  }
-  auto by_time = [](const EncoderSample& s, std::int64_t t) { return s.utime_us < t; };
+  stats.other_ids = markers.other_ids;
+  const EncoderIndex index(enc);
   std::vector<AlignedSample> out;
   for (const MarkerSample& m : markers.samples) {
     if (!m.present) {
       ++stats.marker_missing;
       continue;
     }
-    const std::int64_t lo_t = m.utime_us - options.guard_us;
-    const std::int64_t hi_t = m.utime_us + options.guard_us;
-    if (e.empty() || lo_t < e.front().utime_us || hi_t > e.back().utime_us) {
-      ++stats.outside_encoder_log;
+    const Bracket b = index.check(m.utime_us - options.guard_us, m.utime_us + options.guard_us,
+                                  options.max_gap_us);
+    if (b != Bracket::kOk) {
+      count_skip(b, stats);
       continue;
     }
-    // Encoder samples bracketing [lo_t, hi_t].
-    auto lo_it = std::lower_bound(e.begin(), e.end(), lo_t, by_time);
-    if (lo_it->utime_us > lo_t) --lo_it;
-    auto hi_it = std::lower_bound(e.begin(), e.end(), hi_t, by_time);
-    const auto lo = static_cast<std::size_t>(lo_it - e.begin());
-    const auto hi = static_cast<std::size_t>(hi_it - e.begin());
-    bool gap = false;
-    for (std::size_t i = lo; i < hi && !gap; ++i) {
-      gap = e[i + 1].utime_us - e[i].utime_us > options.max_gap_us;
-    }
-    if (gap) {
-      ++stats.encoder_gap;
-      continue;
-    }
-    if (invalid_before[hi + 1] - invalid_before[lo] != 0) {
-      ++stats.unhomed_or_faulted;
-      continue;
-    }
-    auto it = std::lower_bound(e.begin(), e.end(), m.utime_us, by_time);
-    std::size_t i1 = static_cast<std::size_t>(it - e.begin());
-    std::size_t i0 = i1;
-    if (e[i1].utime_us > m.utime_us) i0 = i1 - 1;
-    AlignedSample a;
-    a.utime_us = m.utime_us;
-    a.encoder_index = static_cast<int>(i0);
-    const double span = static_cast<double>(e[i1].utime_us - e[i0].utime_us);
-    const double w = span > 0 ? static_cast<double>(m.utime_us - e[i0].utime_us) / span : 0.0;
-    for (int j = 0; j < kJoints; ++j) {
-      a.theta_r[j] = (1.0 - w) * e[i0].theta_r[j] + w * e[i1].theta_r[j];
-    }
+    AlignedSample a = index.interpolate(m.utime_us);
     a.marker = {m.x, m.y, m.z};
+    a.site.id = m.marker_id;
     out.push_back(a);
   }
-  if (options.max_points > 0 && out.size() > options.max_points) {
-    std::vector<AlignedSample> thin;
-    thin.reserve(options.max_points);
-    const double step = static_cast<double>(out.size()) / static_cast<double>(options.max_points);
-    for (std::size_t k = 0; k < options.max_points; ++k) {
-      thin.push_back(out[static_cast<std::size_t>(std::floor(k * step))]);
-    }
-    stats.thinned = out.size() - thin.size();
-    out = std::move(thin);
+  if (options.max_points > 0) {
+    const std::size_t before = out.size();
+    out = thin_per_marker(out, options.max_points);
+    stats.thinned = before - out.size();
   }
   stats.used = out.size();
   return out;
+}
+
+void apply_layout(std::vector<AlignedSample>& points, const MarkerLayout& layout) {
+  for (AlignedSample& p : points) {
+    const MarkerSite* site = layout.find(p.site.id);
+    if (site == nullptr) {
+      throw std::invalid_argument("marker_id " + std::to_string(p.site.id) +
+                                  " is not in the marker layout " + layout.source);
+    }
+    p.site = *site;
+  }
 }
 
 }  // namespace exodaq::calibration

@@ -6,11 +6,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "exodaq/calibration/python_plot.hpp"
 #include "exodaq/config/yaml_reader.hpp"
-
-#ifndef EXODAQ_CALIBRATE_PLOT_SCRIPT
-#define EXODAQ_CALIBRATE_PLOT_SCRIPT ""
-#endif
 
 namespace exodaq::calibration {
 
@@ -38,16 +35,6 @@ std::string stats_row(const std::string& name, const ErrorStats& s) {
   return o.str();
 }
 
-std::string quote_shell(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-bool file_exists(const std::string& p) {
-  return std::ifstream(p).good();
-}
-
 }  // namespace
 
 void print_alignment(std::ostream& o, const std::string& name, const AlignmentStats& s) {
@@ -61,11 +48,14 @@ void print_alignment(std::ostream& o, const std::string& name, const AlignmentSt
   add(s.encoder_gap, "encoder gap");
   add(s.unhomed_or_faulted, "unhomed/faulted joints");
   add(s.thinned, "thinned (--max-points)");
+  add(s.other_ids, "rows of other marker ids");
   if (!skipped.empty()) o << " (skipped: " << skipped << ")";
   o << "\n";
 }
 
-void print_report(std::ostream& o, const Report& r, const std::vector<ValidationResult>& val) {
+namespace {
+
+void print_errors(std::ostream& o, const Report& r) {
   o << "\n=== Calibration report (seed 000 eq. 6, " << r.points << " points, " << r.residuals
     << " residuals, " << r.free_params << " estimated parameters) ===\n";
   o << "Solver: " << r.iterations << " iterations; " << r.termination << "\n";
@@ -73,6 +63,12 @@ void print_report(std::ostream& o, const Report& r, const std::vector<Validation
   o << "Position error (3-D, mm)          RMS     mean      std   median      p95      max\n";
   o << stats_row("before (initial guesses)", r.before) << "\n";
   o << stats_row("after", r.after) << "\n";
+  for (const auto& m : r.per_marker) {
+    o << stats_row("  after, " + std::string(mount_name(m.site.mount)) + " marker " +
+                       std::to_string(m.site.id),
+                   m.after)
+      << "\n";
+  }
   o << "  seed 000 §4.3.1 (their rig)      " << f("%6.2f", kPaperRmsBeforeMm) << " -> "
     << f("%.2f", kPaperRmsAfterMm) << " RMS (mean 13.6 -> 0.95, std 1.35 -> 0.44)\n";
   o << "  mean residual after (x, y, z): " << f("%+.3f", r.after.mean_xyz_m.x() * 1e3) << ", "
@@ -80,7 +76,9 @@ void print_report(std::ostream& o, const Report& r, const std::vector<Validation
     << " mm; RMS per axis " << f("%.3f", r.after.rms_xyz_m.x() * 1e3) << ", "
     << f("%.3f", r.after.rms_xyz_m.y() * 1e3) << ", " << f("%.3f", r.after.rms_xyz_m.z() * 1e3)
     << " mm\n\n";
+}
 
+void print_parameters(std::ostream& o, const Report& r) {
   o << "Parameters (eq. 6 order)   initial     estimate      ± std  unit  status\n";
   for (int p = 0; p < kParams; ++p) {
     const ParamResult& pr = r.params[p];
@@ -101,6 +99,27 @@ void print_report(std::ostream& o, const Report& r, const std::vector<Validation
       << "  ms    time offset (encoder = marker + τ)\n";
   }
   o << "\n";
+}
+
+std::string labels(const std::vector<int>& params) {
+  std::string out;
+  for (int p : params) out += (out.empty() ? "" : ", ") + std::string(param_label(p));
+  return out;
+}
+
+void print_observation_sets(std::ostream& o, const Report& r) {
+  if (r.observation_sets.empty()) return;
+  o << "Identifiability by observations (what each addition identifies):\n";
+  for (const auto& s : r.observation_sets) {
+    o << "  " << pad(s.name + ":", 48)
+      << (s.unidentifiable.empty() ? "every parameter identifiable"
+                                   : "unidentifiable: " + labels(s.unidentifiable));
+    if (!s.newly_identifiable.empty()) o << "; identifies " << labels(s.newly_identifiable);
+    o << "\n";
+  }
+}
+
+void print_identifiability(std::ostream& o, const Report& r) {
   if (r.degeneracies.empty()) {
     o << "Identifiability: every free parameter is identifiable from these data.\n";
   } else {
@@ -108,6 +127,7 @@ void print_report(std::ostream& o, const Report& r, const std::vector<Validation
          "prior; parameters marked gauge-dependent follow that choice):\n";
     for (const auto& d : r.degeneracies) o << "  - " << d.describe() << "\n";
   }
+  print_observation_sets(o, r);
   if (!r.correlations.empty()) {
     o << "Correlations above the threshold among estimated parameters:\n";
     for (const auto& c : r.correlations) {
@@ -119,16 +139,27 @@ void print_report(std::ostream& o, const Report& r, const std::vector<Validation
       << f("%.3g", r.singular_values.front()) << ", min " << f("%.3g", r.singular_values.back())
       << ", ratio " << f("%.3g", r.singular_values.front() / r.singular_values.back()) << "\n";
   }
-  if (!val.empty()) {
-    o << "\nCross-validation (seed 000 §4.3.2)      points  RMS before  RMS after   mean    std    "
-         "max\n";
-    for (const auto& v : val) {
-      o << "  " << pad(v.name, 38) << f("%6.0f", static_cast<double>(v.points))
-        << f("%12.3f", v.before.rms_m * 1e3) << f("%11.3f", v.after.rms_m * 1e3)
-        << f("%7.3f", v.after.mean_m * 1e3) << f("%7.3f", v.after.std_m * 1e3)
-        << f("%7.3f", v.after.max_m * 1e3) << "\n";
-    }
+}
+
+void print_validation(std::ostream& o, const std::vector<ValidationResult>& val) {
+  if (val.empty()) return;
+  o << "\nCross-validation (seed 000 §4.3.2)      points  RMS before  RMS after   mean    std    "
+       "max\n";
+  for (const auto& v : val) {
+    o << "  " << pad(v.name, 38) << f("%6.0f", static_cast<double>(v.points))
+      << f("%12.3f", v.before.rms_m * 1e3) << f("%11.3f", v.after.rms_m * 1e3)
+      << f("%7.3f", v.after.mean_m * 1e3) << f("%7.3f", v.after.std_m * 1e3)
+      << f("%7.3f", v.after.max_m * 1e3) << "\n";
   }
+}
+
+}  // namespace
+
+void print_report(std::ostream& o, const Report& r, const std::vector<ValidationResult>& val) {
+  print_errors(o, r);
+  print_parameters(o, r);
+  print_identifiability(o, r);
+  print_validation(o, val);
 }
 
 void write_residual_csv(const std::string& path, const std::vector<std::int64_t>& train_utime,
@@ -158,31 +189,12 @@ void write_residual_csv(const std::string& path, const std::vector<std::int64_t>
 }
 
 bool plot_residuals(const std::string& csv, const std::string& png, std::string& message) {
-  std::string script;
-  if (const char* env = std::getenv("EXODAQ_CALIBRATE_PLOT")) script = env;
-  if (script.empty() || !file_exists(script)) script = EXODAQ_CALIBRATE_PLOT_SCRIPT;
-  if (script.empty() || !file_exists(script)) {
+  const std::string script = find_plot_script("EXODAQ_CALIBRATE_PLOT", "plot_residuals.py");
+  if (script.empty()) {
     message = "figure skipped: plot_residuals.py not found (set EXODAQ_CALIBRATE_PLOT)";
     return false;
   }
-  std::string python;
-  for (const char* candidate : {"python3", "/usr/bin/python3"}) {
-    const std::string probe = std::string(candidate) + " -c 'import matplotlib' >/dev/null 2>&1";
-    if (std::system(probe.c_str()) == 0) {
-      python = candidate;
-      break;
-    }
-  }
-  if (python.empty()) {
-    message = "figure skipped: no python3 with matplotlib (apt install python3-matplotlib)";
-    return false;
-  }
-  const std::string cmd =
-      python + " " + quote_shell(script) + " " + quote_shell(csv) + " " + quote_shell(png);
-  if (std::system(cmd.c_str()) != 0) {
-    message = "figure skipped: " + cmd + " failed";
-    return false;
-  }
+  if (!run_plot_script(script, {csv, png}, message)) return false;
   message = "residual figure written to " + png;
   return true;
 }

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "exodaq/calibration/marker_layout.hpp"
+
 namespace exodaq::calibration {
 
 inline constexpr int kJoints = 6;
@@ -61,13 +63,21 @@ struct MarkerSample {
 struct MarkerSeries {
   std::string source;
   std::vector<MarkerSample> samples;
+  std::size_t other_ids = 0;  // rows of markers that were not selected (counted, not used)
 };
 
 // CSV: header `utime_us,x_mm,y_mm,z_mm[,marker_id]`. Empty fields or `nan` in
 // x/y/z mean the marker was not seen (counted, skipped). `marker_id` selects
 // one marker when the file holds several (-1: the file must hold one id).
+// utime_us must increase from row to row of each marker.
 MarkerSeries read_marker_csv(const std::string& path, int marker_id = -1);
 MarkerSeries parse_marker_csv(const std::string& text, const std::string& name, int marker_id = -1);
+
+// Several markers (a marker layout, a motion-capture session): the rows of the
+// given ids, in file order. Needs the marker_id column; every id must have rows.
+MarkerSeries read_marker_csv_ids(const std::string& path, const std::vector<int>& ids);
+MarkerSeries parse_marker_csv_ids(const std::string& text, const std::string& name,
+                                  const std::vector<int>& ids);
 
 // One calibration point: the encoder stream interpolated at the marker time.
 struct AlignedSample {
@@ -75,6 +85,9 @@ struct AlignedSample {
   std::array<double, kJoints> theta_r{};
   std::array<double, 3> marker{};  // m, camera frame
   int encoder_index = 0;           // encoder sample at or before utime_us
+  // Which marker, and where it sits (default: seed 000's one marker at the tool
+  // point; apply_layout() fills in the others).
+  MarkerSite site;
 };
 
 struct AlignmentOptions {
@@ -84,7 +97,7 @@ struct AlignmentOptions {
   // Encoder samples within ±guard_us of a marker time must be valid (so a time
   // offset estimated within that range never interpolates from bad samples).
   std::int64_t guard_us = 0;
-  // Keep at most this many points, evenly spread (0: all).
+  // Keep at most this many points of each marker, evenly spread (0: all).
   std::size_t max_points = 0;
 };
 
@@ -95,10 +108,15 @@ struct AlignmentStats {
   std::size_t outside_encoder_log = 0;
   std::size_t encoder_gap = 0;  // bracketing encoder samples too far apart
   std::size_t unhomed_or_faulted = 0;
-  std::size_t thinned = 0;  // dropped by max_points
+  std::size_t thinned = 0;    // dropped by max_points
+  std::size_t other_ids = 0;  // rows of markers not selected (MarkerSeries::other_ids)
 };
 
 std::vector<AlignedSample> align(const EncoderSeries& enc, const MarkerSeries& markers,
                                  const AlignmentOptions& options, AlignmentStats& stats);
+
+// Sets each point's site from the layout by its marker id. Throws
+// std::invalid_argument naming an id the layout does not have.
+void apply_layout(std::vector<AlignedSample>& points, const MarkerLayout& layout);
 
 }  // namespace exodaq::calibration

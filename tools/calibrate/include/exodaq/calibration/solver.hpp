@@ -61,9 +61,12 @@ struct NominalModel {
 NominalModel nominal_from_chain(const kin::Chain& chain);  // throws std::invalid_argument
 
 // Marker position in the camera frame for joint readings θᴿ and parameters x
-// (seed 000 Fig. 12). Plain-double twin of the Ceres cost.
+// (seed 000 Fig. 12). Plain-double twin of the Ceres cost. Without a site: seed
+// 000's one marker at the tool point (+ Δpᴹ).
 Eigen::Vector3d predict_marker(const NominalModel& model, const ParamVector& x,
                                const std::array<double, kJoints>& theta_r);
+Eigen::Vector3d predict_marker(const NominalModel& model, const ParamVector& x,
+                               const std::array<double, kJoints>& theta_r, const MarkerSite& site);
 
 // Per-parameter prior: initial guess, bounds, optionally fixed.
 struct ParamPrior {
@@ -158,6 +161,21 @@ struct Correlation {
   double r;
 };
 
+// Residuals of one marker (several markers: docs/calibration.md §3.5).
+struct MarkerResiduals {
+  MarkerSite site;
+  ErrorStats after;
+};
+
+// What one set of observations identifies, judged on the Jacobian at the
+// solution: seed 000's one hand marker with a free camera first, then each
+// addition (more hand markers, base markers, a fixed camera), then all.
+struct ObservationSet {
+  std::string name;
+  std::vector<int> unidentifiable;      // parameters these observations cannot determine
+  std::vector<int> newly_identifiable;  // unidentifiable in the first set, identified here
+};
+
 struct Report {
   std::size_t points = 0;
   std::size_t residuals = 0;
@@ -172,6 +190,8 @@ struct Report {
   int iterations = 0;
   std::string termination;
   std::vector<Eigen::Vector3d> residual_before, residual_after;  // measured - predicted, m
+  std::vector<MarkerResiduals> per_marker;                       // with more than one marker id
+  std::vector<ObservationSet> observation_sets;  // with several markers or a fixed camera
 };
 
 ParamVector initial_params(const Bounds& bounds);
@@ -188,6 +208,9 @@ ErrorStats evaluate(const NominalModel& model, const ParamVector& x,
                     const std::vector<AlignedSample>& points,
                     std::vector<Eigen::Vector3d>* residuals = nullptr);
 ErrorStats error_stats(const std::vector<Eigen::Vector3d>& residuals);
+// Statistics per marker id (points[i] <-> residuals[i]), ids ascending.
+std::vector<MarkerResiduals> residuals_per_marker(const std::vector<AlignedSample>& points,
+                                                  const std::vector<Eigen::Vector3d>& residuals);
 
 // The calibration the daemon reads (camera transform included for the record).
 config::Calibration to_calibration(const ParamVector& x);

@@ -1,0 +1,39 @@
+#pragma once
+// Where the motion-capture markers of a calibration sit (docs/calibration.md
+// §3.5): on the hand/forearm (the last link, DH frame 6) or on the
+// exoskeleton's base (O0). Several markers make parameters identifiable that
+// one marker cannot (§6). Errors are config::ConfigError "file:line: what".
+#include <array>
+#include <string>
+#include <vector>
+
+namespace exodaq::calibration {
+
+enum class MarkerMount {
+  kHand,  // on the last link: frame 6, relative to the tool point; Δpᴹ is added
+  kBase,  // on the exoskeleton's base: O0, the frame the daemon publishes in
+};
+const char* mount_name(MarkerMount m) noexcept;  // "hand", "base"
+
+struct MarkerSite {
+  int id = -1;  // marker_id in the mocap CSV (-1: the file has no marker_id column)
+  MarkerMount mount = MarkerMount::kHand;
+  std::array<double, 3> position{};  // m, in the mount's frame (above)
+};
+
+// The markers of one calibration. Without a layout file, every marker sample
+// is the one hand marker of seed 000 at the tool point.
+struct MarkerLayout {
+  std::string source;
+  std::vector<MarkerSite> sites;  // at least one hand marker; ids unique
+
+  const MarkerSite* find(int id) const noexcept;
+  std::vector<int> ids() const;
+  std::vector<int> ids(MarkerMount mount) const;
+};
+
+// YAML, `format: exodaq-marker-layout-1` (config/calibration/markers_example.yaml).
+MarkerLayout load_marker_layout_file(const std::string& path);
+MarkerLayout load_marker_layout_text(const std::string& text, const std::string& name);
+
+}  // namespace exodaq::calibration

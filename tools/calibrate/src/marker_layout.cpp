@@ -1,0 +1,82 @@
+#include "exodaq/calibration/marker_layout.hpp"
+
+#include <algorithm>
+
+#include "exodaq/config/yaml_reader.hpp"
+
+namespace exodaq::calibration {
+
+namespace {
+
+MarkerSite read_site(const std::string& file, const YAML::Node& node, std::size_t index) {
+  config::MapReader m(file, node, "markers[" + std::to_string(index) + "]");
+  MarkerSite s;
+  const std::int64_t id = m.integer("id");
+  if (id < 0 || id > 1'000'000'000) m.fail(m.child("id"), "'id' must be a marker_id >= 0");
+  s.id = static_cast<int>(id);
+  s.mount = m.choice("on", {"hand", "base"}) == "hand" ? MarkerMount::kHand : MarkerMount::kBase;
+  const auto mm = m.numbers_fixed<3>("position_mm");
+  for (int k = 0; k < 3; ++k) s.position[k] = mm[k] * 1e-3;
+  m.finish();
+  return s;
+}
+
+MarkerLayout parse_layout(const YAML::Node& root, const std::string& file) {
+  config::MapReader top(file, root, "marker layout");
+  const YAML::Node format = top.child("format");
+  if (!format.IsScalar() || format.Scalar() != "exodaq-marker-layout-1") {
+    top.fail(format, "'format' must be 'exodaq-marker-layout-1'");
+  }
+  const YAML::Node list = top.child("markers");
+  if (!list.IsSequence() || list.size() == 0) top.fail(list, "'markers' must be a non-empty list");
+  MarkerLayout layout;
+  layout.source = file;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const MarkerSite s = read_site(file, list[i], i);
+    if (layout.find(s.id) != nullptr) {
+      top.fail(list[i], "marker id " + std::to_string(s.id) + " appears twice");
+    }
+    layout.sites.push_back(s);
+  }
+  if (layout.ids(MarkerMount::kHand).empty()) {
+    top.fail(list, "at least one marker must be 'on: hand' (the base markers see no joint)");
+  }
+  top.finish();
+  return layout;
+}
+
+}  // namespace
+
+const char* mount_name(MarkerMount m) noexcept {
+  return m == MarkerMount::kHand ? "hand" : "base";
+}
+
+const MarkerSite* MarkerLayout::find(int id) const noexcept {
+  const auto it =
+      std::find_if(sites.begin(), sites.end(), [id](const MarkerSite& s) { return s.id == id; });
+  return it == sites.end() ? nullptr : &*it;
+}
+
+std::vector<int> MarkerLayout::ids() const {
+  std::vector<int> out;
+  for (const auto& s : sites) out.push_back(s.id);
+  return out;
+}
+
+std::vector<int> MarkerLayout::ids(MarkerMount mount) const {
+  std::vector<int> out;
+  for (const auto& s : sites) {
+    if (s.mount == mount) out.push_back(s.id);
+  }
+  return out;
+}
+
+MarkerLayout load_marker_layout_file(const std::string& path) {
+  return parse_layout(config::load_yaml_file(path), path);
+}
+
+MarkerLayout load_marker_layout_text(const std::string& text, const std::string& name) {
+  return parse_layout(config::load_yaml_text(text, name), name);
+}
+
+}  // namespace exodaq::calibration

@@ -1,0 +1,352 @@
+// Seed 001 §II.B: shoulder centre of rotation per humerus-elevation bin.
+#include "exodaq/calibration/shoulder_cor.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+
+namespace exodaq::calibration {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+bool seen(const Eigen::Matrix3Xd& m, Eigen::Index k) {
+  return k < m.cols() && m.col(k).allFinite();
+}
+
+// Columns seen in both matrices.
+std::vector<Eigen::Index> common_columns(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
+  std::vector<Eigen::Index> out;
+  for (Eigen::Index k = 0; k < std::min(a.cols(), b.cols()); ++k) {
+    if (seen(a, k) && seen(b, k)) out.push_back(k);
+  }
+  return out;
+}
+
+std::optional<RigidTransform> fit_columns(const Eigen::Matrix3Xd& from, const Eigen::Matrix3Xd& to,
+                                          const std::vector<Eigen::Index>& cols) {
+  return fit_rigid_transform(from(Eigen::all, cols), to(Eigen::all, cols));
+}
+
+Eigen::Matrix3Xd transformed(const RigidTransform& t, const Eigen::Matrix3Xd& m) {
+  Eigen::Matrix3Xd out = m;
+  for (Eigen::Index k = 0; k < m.cols(); ++k) {
+    if (seen(m, k)) out.col(k) = t.apply(m.col(k));
+  }
+  return out;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+// A frame of a bin with its humerus elevation.
+struct BinFrame {
+  const MocapFrame* frame;
+  double elevation;
+};
+
+// Step 2-3: the rotation axes of up to K random pairs of the bin's frames.
+std::vector<RotationAxis> pair_axes(const std::vector<BinFrame>& frames, const CorOptions& o,
+                                    std::uint64_t seed, CorBin& bin) {
+  std::vector<RotationAxis> axes;
+  const std::size_t n = frames.size();
+  if (n < 2) return axes;
+  auto try_pair = [&](std::size_t i, std::size_t j) {
+    ++bin.pairs;
+    const Eigen::Matrix3Xd& a = frames[i].frame->humerus;
+    const Eigen::Matrix3Xd& b = frames[j].frame->humerus;
+    const auto cols = common_columns(a, b);
+    const auto t = cols.size() >= 3 ? fit_columns(a, b, cols) : std::nullopt;
+    if (!t) {
+      ++bin.pairs_few_markers;
+      return;
+    }
+    const RotationAxis axis = rotation_axis(*t);
+    if (axis.angle_rad < o.min_rotation_rad) {
+      ++bin.pairs_small;
+      return;
+    }
+    axes.push_back(axis);
+  };
+  if (n * (n - 1) / 2 <= o.pairs_per_bin) {  // few frames: every pair once
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t j = i + 1; j < n; ++j) try_pair(i, j);
+    }
+    return axes;
+  }
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<std::size_t> pick(0, n - 1);
+  for (std::size_t k = 0; k < o.pairs_per_bin; ++k) {
+    const std::size_t i = pick(rng);
+    std::size_t j = pick(rng);
+    while (j == i) j = pick(rng);
+    try_pair(i, j);
+  }
+  return axes;
+}
+
+// Step 4 (first half): the initial estimate from the humerus markers' tracks.
+std::optional<Eigen::Vector3d> initial_centre(const std::vector<BinFrame>& frames) {
+  const Eigen::Index markers = frames.front().frame->humerus.cols();
+  std::vector<Eigen::Matrix3Xd> tracks;
+  for (Eigen::Index k = 0; k < markers; ++k) {
+    std::vector<Eigen::Vector3d> pts;
+    for (const BinFrame& f : frames) {
+      if (seen(f.frame->humerus, k)) pts.push_back(f.frame->humerus.col(k));
+    }
+    Eigen::Matrix3Xd t(3, static_cast<Eigen::Index>(pts.size()));
+    for (std::size_t i = 0; i < pts.size(); ++i) t.col(static_cast<Eigen::Index>(i)) = pts[i];
+    tracks.push_back(std::move(t));
+  }
+  return fit_sphere_centre(tracks);
+}
+
+// The axes within max(factor × median, floor) of `centre`.
+std::vector<RotationAxis> near_axes(const std::vector<RotationAxis>& axes,
+                                    const Eigen::Vector3d& centre, const CorOptions& o) {
+  std::vector<double> d;
+  for (const auto& a : axes) d.push_back(distance_to_axis(centre, a));
+  const double limit = std::max(o.outlier_factor * median(d), o.outlier_floor_m);
+  std::vector<RotationAxis> kept;
+  for (std::size_t k = 0; k < axes.size(); ++k) {
+    if (d[k] <= limit) kept.push_back(axes[k]);
+  }
+  return kept;
+}
+
+// Steps 4-5: drop outlying axes around the initial estimate, take the point
+// closest to the rest; once more around that point.
+void estimate_centre(const std::vector<RotationAxis>& axes, const CorOptions& o, CorBin& bin) {
+  std::optional<Eigen::Vector3d> c = bin.initial;
+  std::vector<RotationAxis> kept = axes;
+  for (int pass = 0; pass < 2 && c; ++pass) {
+    kept = near_axes(axes, *c, o);
+    c = kept.size() >= o.min_axes ? closest_point_to_axes(kept) : std::nullopt;
+  }
+  bin.axes = kept.size();
+  bin.outliers = axes.size() - kept.size();
+  if (!c) {
+    bin.why = "only " + std::to_string(kept.size()) + " usable rotation axes (need " +
+              std::to_string(o.min_axes) + ")";
+    return;
+  }
+  bin.centre = *c;
+  double sq = 0;
+  for (const auto& a : kept) sq += std::pow(distance_to_axis(*c, a), 2);
+  bin.axis_rms_m = std::sqrt(sq / static_cast<double>(kept.size()));
+  bin.valid = true;
+}
+
+void analyse_bin(const std::vector<BinFrame>& frames, const CorOptions& o, std::uint64_t seed,
+                 CorBin& bin) {
+  bin.frames = frames.size();
+  for (const BinFrame& f : frames)
+    bin.mean_elevation_rad += f.elevation / static_cast<double>(frames.size());
+  if (frames.size() < 2) {
+    bin.why = frames.empty() ? "no frames" : "one frame";
+    return;
+  }
+  const std::vector<RotationAxis> axes = pair_axes(frames, o, seed, bin);
+  if (axes.size() < o.min_axes) {
+    bin.why = "only " + std::to_string(axes.size()) +
+              " pairs turned by at least the minimum "
+              "rotation (need " +
+              std::to_string(o.min_axes) + ")";
+    return;
+  }
+  const auto init = initial_centre(frames);
+  bin.initial = init ? *init : closest_point_to_axes(axes).value_or(Eigen::Vector3d::Zero());
+  estimate_centre(axes, o, bin);
+}
+
+// Vertical and horizontal motion of the centres relative to the first valid bin.
+void describe_motion(CorResult& r) {
+  const auto first =
+      std::find_if(r.bins.begin(), r.bins.end(), [](const CorBin& b) { return b.valid; });
+  if (first == r.bins.end()) return;
+  const Eigen::Vector3d c0 = first->centre;
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& b : r.bins) {
+    if (!b.valid) continue;
+    const Eigen::Vector3d d = b.centre - c0;
+    const Eigen::Vector3d h = d - d.dot(r.cranial) * r.cranial;
+    scatter += h * h.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
+  Eigen::Vector3d axis = eig.eigenvectors().col(2);
+  if (eig.eigenvalues()(2) <= 0) axis = r.cranial.unitOrthogonal();
+  double sum = 0;
+  for (const auto& b : r.bins) sum += b.valid ? (b.centre - c0).dot(axis) : 0.0;
+  r.horizontal_axis = sum < 0 ? Eigen::Vector3d(-axis) : axis;
+  for (auto& b : r.bins) {
+    if (!b.valid) continue;
+    b.vertical_m = (b.centre - c0).dot(r.cranial);
+    b.horizontal_m = (b.centre - c0).dot(r.horizontal_axis);
+  }
+}
+
+}  // namespace
+
+std::optional<RigidTransform> fit_rigid_transform(const Eigen::Matrix3Xd& from,
+                                                  const Eigen::Matrix3Xd& to) {
+  if (from.cols() < 3 || from.cols() != to.cols() || !from.allFinite() || !to.allFinite()) {
+    return std::nullopt;
+  }
+  const Eigen::Matrix3Xd centred = from.colwise() - from.rowwise().mean();
+  const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3Xd>(centred).singularValues();
+  if (!(sv(1) > 1e-6 * sv(0))) return std::nullopt;  // on one line: a rotation about it is free
+  const Eigen::Matrix4d T = Eigen::umeyama(from, to, false);
+  RigidTransform t;
+  t.rotation = T.topLeftCorner<3, 3>();
+  t.translation = T.topRightCorner<3, 1>();
+  return t;
+}
+
+RotationAxis rotation_axis(const RigidTransform& t) {
+  const Eigen::AngleAxisd aa(t.rotation);
+  RotationAxis a;
+  a.angle_rad = aa.angle();
+  if (!(a.angle_rad > 1e-12)) {
+    a.slide_m = t.translation.norm();
+    return a;
+  }
+  a.direction = aa.axis().normalized();
+  a.slide_m = a.direction.dot(t.translation);
+  const Eigen::Vector3d t_perp = t.translation - a.slide_m * a.direction;
+  // (I − R) c = t⊥ with c ⊥ v: (I − R + v vᵀ) c = t⊥ (I − R keeps the plane ⊥ v).
+  const Eigen::Matrix3d A =
+      Eigen::Matrix3d::Identity() - t.rotation + a.direction * a.direction.transpose();
+  a.point = A.colPivHouseholderQr().solve(t_perp);
+  return a;
+}
+
+double distance_to_axis(const Eigen::Vector3d& p, const RotationAxis& a) {
+  const Eigen::Vector3d d = p - a.point;
+  return (d - d.dot(a.direction) * a.direction).norm();
+}
+
+std::optional<Eigen::Vector3d> closest_point_to_axes(const std::vector<RotationAxis>& axes) {
+  if (axes.size() < 2) return std::nullopt;
+  Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (const auto& a : axes) {
+    const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - a.direction * a.direction.transpose();
+    M += P;
+    b += P * a.point;
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(M);
+  if (!(eig.eigenvalues()(0) > 1e-9 * eig.eigenvalues()(2))) return std::nullopt;  // parallel
+  return Eigen::Vector3d(M.ldlt().solve(b));
+}
+
+std::optional<Eigen::Vector3d> fit_sphere_centre(const std::vector<Eigen::Matrix3Xd>& tracks) {
+  Eigen::Index rows = 0, m = 0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& t : tracks) {
+    if (t.cols() < 2) continue;
+    rows += t.cols();
+    ++m;
+    mean += t.rowwise().sum();
+  }
+  if (rows < 3 + m + 1) return std::nullopt;
+  mean /= static_cast<double>(rows);
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(rows, 3 + m);
+  Eigen::VectorXd y(rows);
+  Eigen::Index r = 0, k = 0;
+  for (const auto& t : tracks) {
+    if (t.cols() < 2) continue;
+    for (Eigen::Index i = 0; i < t.cols(); ++i, ++r) {
+      const Eigen::Vector3d x = t.col(i) - mean;  // centred for conditioning
+      A.block<1, 3>(r, 0) = 2.0 * x.transpose();
+      A(r, 3 + k) = 1.0;
+      y(r) = x.squaredNorm();
+    }
+    ++k;
+  }
+  const auto qr = A.colPivHouseholderQr();
+  if (qr.rank() < A.cols()) return std::nullopt;
+  return Eigen::Vector3d(qr.solve(y).head<3>() + mean);
+}
+
+std::vector<MocapFrame> normalise_to_torso(const std::vector<MocapFrame>& frames,
+                                           CorResult& result) {
+  const auto ref = std::find_if(frames.begin(), frames.end(),
+                                [](const MocapFrame& f) { return f.torso.allFinite(); });
+  if (ref == frames.end() || ref->torso.cols() < 3) {
+    throw std::invalid_argument(
+        "no frame shows all torso markers (at least 3 needed to hold the torso still)");
+  }
+  std::vector<MocapFrame> out;
+  out.reserve(frames.size());
+  for (const MocapFrame& f : frames) {
+    MocapFrame n;
+    n.utime_us = f.utime_us;
+    const auto cols = common_columns(f.torso, ref->torso);
+    const auto t = cols.size() >= 3 ? fit_columns(f.torso, ref->torso, cols) : std::nullopt;
+    if (t) {
+      n.torso = transformed(*t, f.torso);
+      n.humerus = transformed(*t, f.humerus);
+    } else {
+      ++result.frames_torso_missing;
+    }
+    out.push_back(std::move(n));
+  }
+  return out;
+}
+
+double humerus_elevation(const MocapFrame& frame, const ShoulderAxes& axes,
+                         const Eigen::Vector3d& caudal) {
+  if (!seen(frame.humerus, axes.humerus_proximal) || !seen(frame.humerus, axes.humerus_distal)) {
+    return kNaN;
+  }
+  const Eigen::Vector3d d =
+      (frame.humerus.col(axes.humerus_distal) - frame.humerus.col(axes.humerus_proximal))
+          .normalized();
+  return std::acos(std::clamp(d.dot(caudal), -1.0, 1.0));
+}
+
+CorResult analyse_shoulder_cor(const std::vector<MocapFrame>& frames, const ShoulderAxes& axes,
+                               const CorOptions& options) {
+  CorResult r;
+  r.frames = frames.size();
+  const std::vector<MocapFrame> norm = normalise_to_torso(frames, r);
+  const MocapFrame& ref = *std::find_if(norm.begin(), norm.end(), [](const MocapFrame& f) {
+    return f.torso.cols() > 0 && f.torso.allFinite();
+  });
+  const Eigen::Vector3d caudal =
+      (ref.torso.col(axes.torso_caudal) - ref.torso.col(axes.torso_cranial)).normalized();
+  r.cranial = -caudal;
+  std::vector<std::vector<BinFrame>> by_bin;
+  for (const MocapFrame& f : norm) {
+    if (f.torso.cols() == 0) continue;
+    const double e = humerus_elevation(f, axes, caudal);
+    if (!std::isfinite(e) || common_columns(f.humerus, f.humerus).size() < 3) {
+      ++r.frames_humerus_missing;
+      continue;
+    }
+    const auto k = static_cast<std::size_t>(e / options.bin_width_rad);
+    if (by_bin.size() <= k) by_bin.resize(k + 1);
+    by_bin[k].push_back({&f, e});
+    ++r.frames_used;
+  }
+  r.bins.resize(by_bin.size());
+  for (std::size_t k = 0; k < by_bin.size(); ++k) {
+    r.bins[k].elevation_lo_rad = static_cast<double>(k) * options.bin_width_rad;
+    r.bins[k].elevation_hi_rad = static_cast<double>(k + 1) * options.bin_width_rad;
+    analyse_bin(by_bin[k], options, options.seed + 7919 * k, r.bins[k]);
+  }
+  describe_motion(r);
+  return r;
+}
+
+}  // namespace exodaq::calibration
