@@ -359,8 +359,8 @@ def main():
     ap.add_argument("--report-json", help="write the figures here")
     ap.add_argument("--no-snooping", action="store_true", help="bridge without IGMP snooping")
     ap.add_argument("--early-join", action="store_true",
-                    help="subscribe while the switch's querier is still flooding (shows the IGMP "
-                         "report-suppression cut-off: run 15 s or more; expected to fail)")
+                    help="subscribe while the switch's querier is still flooding: hosts whose IGMP "
+                         "report another's suppressed are cut off (expected to fail)")
     ap.add_argument("--logger-sched", choices=("fifo", "other"), default="fifo",
                     help="lcm-logger's scheduling policy (default fifo: chrt -f 10)")
     ap.add_argument("--no-local", action="store_true",
