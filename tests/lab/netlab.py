@@ -46,7 +46,7 @@ import subprocess
 import sys
 import time
 
-NAME_RE = re.compile(r"^exolab(\d+)-")
+NAME_RE = re.compile(r"^exolab(\d+)x*-")
 SUBNET = "10.77.0"
 SWITCH = "sw"
 QUERY_RESPONSE_CS = 100  # the bridge's IGMP query response interval, centiseconds
@@ -140,7 +140,9 @@ class NetLab:
     def _add_ns(self, name):
         r = _ip("netns", "add", name, check=False)
         if r.returncode != 0:
-            raise LabUnavailable(f"ip netns add {name}: {r.stderr.strip()}")
+            # The first one tells whether namespaces can be made here at all.
+            kind = RuntimeError if self._made else LabUnavailable
+            raise kind(f"ip netns add {name}: {r.stderr.strip()}")
         self._made.append(name)
 
     def _build(self):
