@@ -388,7 +388,7 @@ def main():
         return 77
     with lab:
         checks, report = run(lab, a, work, decoders)
-    print(f"run_lab: lab {lab.tag} removed; work directory {work}")
+    print(f"run_lab: lab {lab.tag} removed")
     if report:
         print_report(report)
         if a.report_json:
@@ -398,6 +398,8 @@ def main():
     print("run_lab: PASSED" if checks.passed else "run_lab: FAILED")
     if checks.passed and not a.work_dir:
         shutil.rmtree(work, ignore_errors=True)
+    else:
+        print(f"run_lab: logs, summaries and the lcm-logger file are in {work}")
     return 0 if checks.passed else 1
 
 
