@@ -12,6 +12,7 @@ def markdown(res, png_name):
     L += parts.kinematics(res)
     L += daemon.lateness(res) + daemon.e2e(res) + daemon.resources(res) + daemon.scaling(res, png_name)
     L += parts.replay(res)
+    L += parts.hand_measured()
     return "\n".join(L).rstrip() + "\n"
 
 

@@ -66,3 +66,11 @@ def replay(res):
              f"{fmt(rp['process_cpu_speed_x'], 0, '×')} CPU ({fmt(rp['process_wall_speed_x'], 0, '×')} wall); "
              f"target {speed.target.text()} ({speed.note}); {peak_rss(rp)}. Command: `{rp['command']}`.\n")
     return L
+
+
+# Sections measured by hand with their own tools, kept verbatim (prose/NAME.md).
+HAND_MEASURED = ["lab_network"]
+
+
+def hand_measured():
+    return [prose(name) for name in HAND_MEASURED]
