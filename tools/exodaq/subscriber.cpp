@@ -456,6 +456,10 @@ int Subscriber::handle(int timeout_ms) {
   return lcm_->handleTimeout(timeout_ms);
 }
 
+int Subscriber::fileno() {
+  return lcm_->getFileno();
+}
+
 int64_t now_utime() {
   using namespace std::chrono;
   return duration_cast<microseconds>(system_clock::now().time_since_epoch()).count();
