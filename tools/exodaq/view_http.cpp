@@ -222,14 +222,13 @@ void HttpServer::read_from(Conn& c, std::int64_t now_ns) {
 void HttpServer::answer(Conn& c, std::int64_t now_ns) {
   std::size_t end = c.in.find("\r\n\r\n");
   if (end == std::string::npos) end = c.in.find("\n\n");
-  if (end == std::string::npos) {
-    if (c.in.size() > options_.max_request_bytes) {
-      ++stats_.bad_requests;
-      respond(c, 431, "text/plain; charset=utf-8", "request header too large\n", false, now_ns);
-      write_to(c, now_ns);
-    }
+  if ((end == std::string::npos ? c.in.size() : end) > options_.max_request_bytes) {
+    ++stats_.bad_requests;
+    respond(c, 431, "text/plain; charset=utf-8", "request header too large\n", false, now_ns);
+    write_to(c, now_ns);
     return;
   }
+  if (end == std::string::npos) return;  // not complete yet
   ++stats_.requests;
   std::string_view line(c.in);
   line = line.substr(0, line.find('\n'));
@@ -362,7 +361,12 @@ void HttpServer::close_conn(Conn& c) {
 }
 
 HttpStats HttpServer::stats() const {
-  return stats_;
+  HttpStats s = stats_;
+  for (const auto& c : conns_) {
+    if (!c->closed && c->state == Conn::State::kStream)
+      s.stream_backlog_bytes += static_cast<std::int64_t>(c->pending());
+  }
+  return s;
 }
 
 }  // namespace exodaq::tools::view

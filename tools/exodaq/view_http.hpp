@@ -41,11 +41,12 @@ struct HttpResponse {
 struct HttpStats {
   std::int64_t accepted = 0;
   std::int64_t requests = 0;
-  std::int64_t bad_requests = 0;    // malformed, too large, wrong method, timed out
-  std::int64_t refused = 0;         // over max_connections
-  std::int64_t stream_clients = 0;  // open now
-  std::int64_t skipped_events = 0;  // not queued for a client whose backlog was full
-  std::int64_t stalled_closed = 0;  // closed for accepting nothing within stall_timeout
+  std::int64_t bad_requests = 0;          // malformed, too large, wrong method, timed out
+  std::int64_t refused = 0;               // over max_connections
+  std::int64_t stream_clients = 0;        // open now
+  std::int64_t skipped_events = 0;        // not queued for a client whose backlog was full
+  std::int64_t stalled_closed = 0;        // closed for accepting nothing within stall_timeout
+  std::int64_t stream_backlog_bytes = 0;  // queued for stream clients now
 };
 
 class HttpServer {
