@@ -143,6 +143,18 @@ TEST(ViewHttp, RejectsWhatItDoesNotSpeak) {
   EXPECT_EQ(h.server.stats().bad_requests, 5);
 }
 
+TEST(ViewHttp, OnLoopbackOnlyLoopbackHostNamesAreServed) {
+  Harness h;
+  EXPECT_EQ(request(h, "GET /a HTTP/1.1\r\nHost: localhost:8077\r\n\r\n").rfind("HTTP/1.1 200", 0),
+            0u);
+  EXPECT_EQ(request(h, "GET /a HTTP/1.1\r\nhost:127.0.0.1\r\n\r\n").rfind("HTTP/1.1 200", 0), 0u);
+  EXPECT_EQ(request(h, "GET /a HTTP/1.1\r\nHOST: [::1]:80\r\n\r\n").rfind("HTTP/1.1 200", 0), 0u);
+  // A page elsewhere whose name was made to resolve to 127.0.0.1 (DNS rebinding).
+  const std::string r = request(h, "GET /a HTTP/1.1\r\nHost: evil.example:8077\r\n\r\n");
+  EXPECT_EQ(r.rfind("HTTP/1.1 403 Forbidden\r\n", 0), 0u) << r;
+  EXPECT_NE(r.find("Host 'evil.example' is not this computer's loopback"), std::string::npos) << r;
+}
+
 TEST(ViewHttp, RequestHeaderTooLargeIs431) {
   HttpOptions o;
   o.max_request_bytes = 1024;
@@ -157,7 +169,7 @@ TEST(ViewHttp, RequestArrivingInPiecesIsAnswered) {
   Client c(h.server.port());
   c.send_text("GE");
   h.step();
-  c.send_text("T /a HTTP/1.1\r\nHost: x\r\n");
+  c.send_text("T /a HTTP/1.1\r\nHost: localhost\r\n");
   h.step();
   EXPECT_TRUE(c.poll_read());
   EXPECT_EQ(c.got, "");  // not complete yet: no answer

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
@@ -24,6 +25,38 @@ constexpr std::string_view kCommonHeaders =
 
 std::string errno_text(int e) {
   return std::strerror(e);
+}
+
+std::string lower(std::string_view s) {
+  std::string out(s);
+  for (auto& ch : out) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return out;
+}
+
+// The Host header's name without the port, lower-case; empty when absent.
+std::string host_of(std::string_view head) {
+  for (std::size_t at = head.find('\n'); at != std::string_view::npos;) {
+    const std::size_t next = head.find('\n', at + 1);
+    std::string_view line =
+        head.substr(at + 1, next == std::string_view::npos ? next : next - at - 1);
+    at = next;
+    if (line.size() < 5 || lower(line.substr(0, 5)) != "host:") continue;
+    line.remove_prefix(5);
+    while (!line.empty() && (line.front() == ' ' || line.front() == '\t')) line.remove_prefix(1);
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.remove_suffix(1);
+    if (line.empty()) return {};
+    std::size_t end = line.find(':');
+    if (line.front() == '[') {  // [IPv6]:port
+      end = line.find(']');
+      if (end != std::string_view::npos) ++end;
+    }
+    return lower(line.substr(0, end));
+  }
+  return {};
+}
+
+bool is_loopback_name(const std::string& host) {
+  return host == "localhost" || host.rfind("127.", 0) == 0 || host == "[::1]" || host == "::1";
 }
 
 }  // namespace
@@ -63,6 +96,8 @@ std::string_view http_reason(int status) {
       return "OK";
     case 400:
       return "Bad Request";
+    case 403:
+      return "Forbidden";
     case 404:
       return "Not Found";
     case 405:
@@ -256,6 +291,14 @@ void HttpServer::answer(Conn& c, std::int64_t now_ns) {
   } else if (target.empty() || target.front() != '/') {
     ++stats_.bad_requests;
     respond(c, 400, "text/plain; charset=utf-8", "the request target must be a path\n", head,
+            now_ns);
+  } else if (const std::string host = host_of(std::string_view(c.in).substr(0, end));
+             is_loopback_name(options_.bind) && !host.empty() && !is_loopback_name(host)) {
+    // Listening on loopback only, asked for another name: a page elsewhere
+    // whose name was made to resolve to 127.0.0.1 (DNS rebinding).
+    ++stats_.bad_requests;
+    respond(c, 403, "text/plain; charset=utf-8",
+            "Host '" + host + "' is not this computer's loopback: open " + url() + "\n", head,
             now_ns);
   } else {
     target = target.substr(0, target.find_first_of("?#"));
