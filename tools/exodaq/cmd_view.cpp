@@ -159,7 +159,7 @@ int serve(const ViewOptions& o, view::ViewScene& scene, const view::SceneOptions
       }
     }
     now = sub::now_mono_ns();
-    if (r > 0) server.service(fds, now);
+    server.service(fds, now);  // also when idle: its timeouts run here
     if (now >= next_tick) {
       for (const auto& e : scene.tick(now)) server.publish(e.name, e.json, e.skippable, now);
       next_tick += period_ns;

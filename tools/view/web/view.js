@@ -229,7 +229,12 @@
       $('clock-detail').textContent = `${c.synchronised ? 'synchronised' : 'not synchronised'}, est error ${fmt(c.est_error_us, 1)} µs, ` +
         `max error ${fmt(c.max_error_us, 1)} µs, offset ${fmt(c.offset_us, 1)} µs, steps ${c.steps}`;
     }
-    if (d === 'stopped' || d === 'disconnected') badge($('service'), d === 'stopped' ? 'STOPPED' : '?', 'bad');
+    if (d === 'stopped') badge($('service'), 'STOPPED', 'bad');
+    // A status that stopped coming is the last word of a service that may be gone.
+    else if (s && (d === 'no-data' || d === 'disconnected')) {
+      const age = sm && sm.status_age_s !== null ? ` (${fmt(sm.status_age_s, 0)} s ago)` : '';
+      badge($('service'), `${s.state}?${d === 'no-data' ? age : ''}`, '');
+    }
     if (sm) {
       $('stream').textContent = `${sm.state}` + (sm.age_s !== null ? `, last joint state ${fmt(sm.age_s, 1)} s ago` : '') +
         (sm.received !== null ? `, received ${fmt(sm.received * 100, 1)} %` : '');
