@@ -93,10 +93,12 @@ view::ViewModel load_view_model(const ViewOptions& o, view::SceneOptions& scene)
 }
 
 void register_pages(view::HttpServer& server, view::ViewScene& scene) {
-  for (const auto& a : view::web_assets()) {
-    const view::HttpResponse r{200, std::string(a.content_type), std::string(a.body)};
-    server.add_handler(std::string(a.path), [r] { return r; });
-    if (a.path == "/index.html") server.add_handler("/", [r] { return r; });
+  for (const view::WebAsset& a : view::web_assets()) {
+    auto page = [a] {
+      return view::HttpResponse{200, std::string(a.content_type), std::string(a.body)};
+    };
+    server.add_handler(std::string(a.path), page);
+    if (a.path == "/index.html") server.add_handler("/", page);
   }
   server.add_event_stream(
       "/events", [&scene] { return view::sse_event("hello", scene.hello(sub::now_mono_ns())); });

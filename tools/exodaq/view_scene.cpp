@@ -182,7 +182,7 @@ std::string ViewScene::frame_json() {
   const int n = model_.chain.joint_count();
   kin::JointVector q(n);
   for (int i = 0; i < n; ++i) q[i] = js.q[static_cast<std::size_t>(i)];
-  frames_.resize(static_cast<std::size_t>(n + 2));
+  frames_.resize(static_cast<std::size_t>(n) + 2);
   for (int i = 0; i <= n + 1; ++i) {
     frames_[static_cast<std::size_t>(i)] = model_.chain.frame(q, i).translation();
   }
