@@ -41,4 +41,8 @@ int Subscriber::handle(int timeout_ms) {
   return lcm_->handleTimeout(timeout_ms);
 }
 
+int Subscriber::fileno() {
+  return lcm_->getFileno();
+}
+
 }  // namespace exodaq::msg

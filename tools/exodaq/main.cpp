@@ -1,4 +1,4 @@
-// exodaq: command-line tools beside the daemon (fk, echo, status, replay,
+// exodaq: command-line tools beside the daemon (fk, echo, view, status, replay,
 // export, plot, calibrate). Each command is in its own cmd_*.cpp.
 #include <algorithm>
 #include <cstdio>

@@ -48,6 +48,9 @@ class Subscriber {
   // Waits up to timeout_ms for traffic and dispatches it. >0: handled
   // messages, 0: timeout, <0: error.
   int handle(int timeout_ms);
+  // The descriptor that becomes readable when handle() has traffic to
+  // dispatch, for callers that poll() several sources in one thread.
+  int fileno();
 
   std::int64_t undecodable() const { return undecodable_; }
 
