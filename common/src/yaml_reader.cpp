@@ -1,5 +1,6 @@
 #include "exodaq/config/yaml_reader.hpp"
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -8,12 +9,27 @@
 #include <fstream>
 #include <sstream>
 
+#include "exodaq/common/files.hpp"
+
 namespace exodaq::config {
 
 namespace {
 std::string format(const std::string& file, int line, const std::string& what) {
   if (line > 0) return file + ":" + std::to_string(line) + ": " + what;
   return file + ": " + what;
+}
+
+// Numbered siblings (d2/d3, dtheta1_deg/dtheta4_deg) are not misspellings
+// of each other.
+bool differ_only_in_digits(const std::string& a, const std::string& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (a[i] != b[i] && !(std::isdigit(static_cast<unsigned char>(a[i])) &&
+                          std::isdigit(static_cast<unsigned char>(b[i])))) {
+      return false;
+    }
+  }
+  return true;
 }
 
 const char* kind_name(const YAML::Node& n) {
@@ -48,6 +64,10 @@ int line_of(const YAML::Node& node) noexcept {
 }
 
 YAML::Node load_yaml_text(const std::string& text, const std::string& name) {
+  // yaml-cpp reads a NUL as the end of the text and passes invalid UTF-8 on.
+  if (const auto problem = files::find_text_problem(text)) {
+    throw ConfigError(name, problem->line, problem->what);
+  }
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -63,11 +83,13 @@ YAML::Node load_yaml_text(const std::string& text, const std::string& name) {
 }
 
 YAML::Node load_yaml_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ConfigError(path, 0, std::string("cannot open: ") + std::strerror(errno));
-  std::ostringstream text;
-  text << in.rdbuf();
-  return load_yaml_text(text.str(), path);
+  std::string text;
+  try {
+    text = files::read_input(path, files::kMaxYamlBytes);
+  } catch (const files::FileError& e) {
+    throw ConfigError(path, 0, e.reason());
+  }
+  return load_yaml_text(text, path);
 }
 
 MapReader::MapReader(std::string file, const YAML::Node& node, std::string context)
@@ -103,7 +125,20 @@ bool MapReader::has(const std::string& key) const {
 YAML::Node MapReader::child(const std::string& key) {
   consumed_.insert(key);
   const YAML::Node n = node_[key];
-  if (!n) fail(node_, "missing field '" + key + "' in " + context_);
+  if (!n) {
+    // A key nobody asked for that is close to this one is most likely it,
+    // misspelled: name it rather than only the missing field.
+    for (auto it = node_.begin(); it != node_.end(); ++it) {
+      if (!it->first.IsScalar() || consumed_.count(it->first.Scalar()) > 0) continue;
+      const std::string& other = it->first.Scalar();
+      if (files::edit_distance(other, key) <= files::typo_allowance(key) &&
+          !differ_only_in_digits(other, key)) {
+        fail(it->first, "unknown key '" + it->first.Scalar() + "' in " + context_ +
+                            ": did you mean '" + key + "'? (missing field '" + key + "')");
+      }
+    }
+    fail(node_, "missing field '" + key + "' in " + context_);
+  }
   return n;
 }
 
@@ -241,8 +276,11 @@ void MapReader::finish() const {
     if (consumed_.count(key) == 0) {
       std::string known;
       for (const auto& k : consumed_) known += (known.empty() ? "" : ", ") + k;
+      const std::string near =
+          files::closest_match(key, std::vector<std::string>(consumed_.begin(), consumed_.end()));
       throw ConfigError(file_, line_of(it->first),
                         "unknown key '" + key + "' in " + context_ +
+                            (near.empty() ? std::string() : ": did you mean '" + near + "'?") +
                             (known.empty() ? std::string() : " (expected one of: " + known + ")"));
     }
   }

@@ -3,9 +3,13 @@
 #include <stdio_ext.h>
 #include <sys/stat.h>
 
+#include <unistd.h>
+
 #include <array>
 #include <cerrno>
 #include <cstring>
+
+#include "exodaq/common/files.hpp"
 
 namespace exodaq::msg {
 
@@ -57,13 +61,21 @@ LogError::LogError(const std::string& file, std::int64_t offset, const std::stri
       offset_(offset) {}
 
 LogReader::LogReader(const std::string& path) : path_(path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) throw LogError(path, -1, errno_text(errno));
-  if (!S_ISREG(st.st_mode)) throw LogError(path, -1, "not a regular file");
-  f_ = std::fopen(path.c_str(), "rb");
-  if (f_ == nullptr) throw LogError(path, -1, errno_text(errno));
+  files::InputInfo info;
+  int fd = -1;
+  try {
+    fd = files::open_input(path, -1, &info);  // no size limit: read as a stream
+  } catch (const files::FileError& e) {
+    throw LogError(path, -1, e.reason());
+  }
+  f_ = ::fdopen(fd, "rb");
+  if (f_ == nullptr) {
+    const int e = errno;
+    ::close(fd);
+    throw LogError(path, -1, errno_text(e));
+  }
   __fsetlocking(f_, FSETLOCKING_BYCALLER);
-  size_ = static_cast<std::int64_t>(st.st_size);
+  size_ = info.size;
   if (size_ == 0) {
     std::fclose(f_);
     throw LogError(path, -1, "empty file, not an LCM log");
@@ -149,19 +161,22 @@ std::string LogReader::damage_text() const {
   return out;
 }
 
-LogWriter::LogWriter(const std::string& path) : path_(path) {
-  f_ = std::fopen(path.c_str(), "wb");
-  if (f_ == nullptr) throw LogError(path, -1, "cannot create: " + errno_text(errno));
-  __fsetlocking(f_, FSETLOCKING_BYCALLER);
+LogWriter::LogWriter(const std::string& path, const std::vector<std::string>& inputs)
+    : path_(path) {
+  files::OutputOptions o;
+  o.inputs = inputs;
+  try {
+    out_ = std::make_unique<files::OutputFile>(path, o);
+  } catch (const files::FileError& e) {
+    throw LogError(path, -1, e.reason());
+  }
 }
 
-LogWriter::~LogWriter() {
-  if (f_ != nullptr) std::fclose(f_);
-}
+LogWriter::~LogWriter() = default;  // an OutputFile not committed leaves nothing behind
 
 void LogWriter::write(std::string_view channel, std::int64_t timestamp_us, const void* data,
                       std::size_t size) {
-  if (f_ == nullptr) throw LogError(path_, -1, "write after close");
+  if (!out_) throw LogError(path_, -1, "write after close");
   if (channel.empty() || channel.size() > kMaxChannelBytes || size > kMaxDataBytes) {
     throw LogError(path_, -1, "event too large or without a channel");
   }
@@ -171,21 +186,26 @@ void LogWriter::write(std::string_view channel, std::int64_t timestamp_us, const
   put64(h.data() + 12, timestamp_us);
   put32(h.data() + 20, static_cast<std::uint32_t>(channel.size()));
   put32(h.data() + 24, static_cast<std::uint32_t>(size));
-  if (std::fwrite(h.data(), 1, h.size(), f_) != h.size() ||
-      std::fwrite(channel.data(), 1, channel.size(), f_) != channel.size() ||
-      (size > 0 && std::fwrite(data, 1, size, f_) != size)) {
-    throw LogError(path_, -1, "write failed: " + errno_text(errno));
+  try {
+    out_->write(h.data(), h.size());
+    out_->write(channel);
+    if (size > 0) out_->write(data, size);
+  } catch (const files::FileError& e) {
+    out_.reset();
+    throw LogError(path_, -1, e.reason());
   }
   ++number_;
 }
 
 void LogWriter::close() {
-  if (f_ == nullptr) return;
-  const bool ok = std::fflush(f_) == 0 && !std::ferror(f_);
-  const int e = errno;
-  const bool closed = std::fclose(f_) == 0;
-  f_ = nullptr;
-  if (!ok || !closed) throw LogError(path_, -1, "write failed: " + errno_text(ok ? errno : e));
+  if (!out_) return;
+  try {
+    out_->commit();
+  } catch (const files::FileError& e) {
+    out_.reset();
+    throw LogError(path_, -1, e.reason());
+  }
+  out_.reset();
 }
 
 std::map<std::string, std::int64_t> scan_channels(const std::string& path) {

@@ -4,6 +4,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <string>
+#include <string_view>
 #include <variant>
 
 #include "exodaq/encoder_raw_t.hpp"
@@ -43,6 +45,12 @@ struct Stamp {
   std::int64_t run_id = 0;
 };
 Stamp stamp_of(const Message& m) noexcept;
+
+// The run id as every tool, log line and CSV spells it: the 64 bits as 16
+// lower-case hex digits ("1f3a09c2d4e5b6a7"; docs/messages.md).
+std::string run_id_text(std::int64_t run_id);
+// run_id_text() read back; nullopt unless exactly 16 hex digits.
+std::optional<std::int64_t> parse_run_id(std::string_view text);
 
 // The daemon encodes every type once, all zero, before its first cycle (so
 // lcm-gen's hashes are initialised off the loop); recordings hold them.
