@@ -19,17 +19,21 @@ std::string format(const std::string& file, int line, const std::string& what) {
   return file + ": " + what;
 }
 
-// Numbered siblings (d2/d3, dtheta1_deg/dtheta4_deg) are not misspellings
-// of each other.
-bool differ_only_in_digits(const std::string& a, const std::string& b) {
-  if (a.size() != b.size()) return false;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    if (a[i] != b[i] && !(std::isdigit(static_cast<unsigned char>(a[i])) &&
-                          std::isdigit(static_cast<unsigned char>(b[i])))) {
-      return false;
-    }
+// Whether `other` (a key nobody asked for yet) may be a sibling of `key`
+// that the reader will ask for later rather than a misspelling of it:
+// numbered siblings (d2/d3, dtheta1_deg/dtheta4_deg) and short keys one
+// letter apart (a3/d3, dd3_mm/da3_mm, x_mm/y_mm).
+bool maybe_sibling(const std::string& other, const std::string& key) {
+  if (other.size() != key.size()) return false;
+  int differ = 0;
+  bool digits_only = true;
+  for (std::size_t i = 0; i < key.size(); ++i) {
+    if (other[i] == key[i]) continue;
+    ++differ;
+    digits_only = digits_only && std::isdigit(static_cast<unsigned char>(other[i])) &&
+                  std::isdigit(static_cast<unsigned char>(key[i]));
   }
-  return true;
+  return digits_only || (differ == 1 && key.size() <= 6);
 }
 
 const char* kind_name(const YAML::Node& n) {
@@ -132,7 +136,7 @@ YAML::Node MapReader::child(const std::string& key) {
       if (!it->first.IsScalar() || consumed_.count(it->first.Scalar()) > 0) continue;
       const std::string& other = it->first.Scalar();
       if (files::edit_distance(other, key) <= files::typo_allowance(key) &&
-          !differ_only_in_digits(other, key)) {
+          !maybe_sibling(other, key)) {
         fail(it->first, "unknown key '" + it->first.Scalar() + "' in " + context_ +
                             ": did you mean '" + key + "'? (missing field '" + key + "')");
       }
