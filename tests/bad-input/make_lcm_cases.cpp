@@ -137,10 +137,19 @@ int main(int argc, char** argv) {
   // Garbage instead of an LCM log.
   write_bytes(d / "not_an_lcm_log.lcm", Buf{'h', 'e', 'l', 'l', 'o', '\n'});
 
-  // Not here: a log truncated in the middle of its last event, or damaged
-  // after some good events. LCM's reader stops there without an error the
-  // replay could report, so those replay what came before without a message
-  // (docs/robustness.md "Bad input", known gap).
+  // Garbage appended after three good events (issue 15 point 8): the three
+  // are replayed, the garbage reported with its bytes.
+  write_log(d / "garbage_after_last_event.lcm", good(3));
+  Buf g = read_all(d / "garbage_after_last_event.lcm");
+  for (const char ch : std::string("\xde\xad\xbe\xef not an event"))
+    g.push_back(static_cast<std::uint8_t>(ch));
+  write_bytes(d / "garbage_after_last_event.lcm", g);
+
+  // A recorder killed mid-write: the last event cut short.
+  write_log(d / "cut_last_event.lcm", good(3));
+  Buf cut = read_all(d / "cut_last_event.lcm");
+  cut.resize(cut.size() - 10);
+  write_bytes(d / "cut_last_event.lcm", cut);
 
   // Corrupted: bytes of the second event's header overwritten.
   write_log(d / "corrupt_event_header.lcm", good(4));
