@@ -9,6 +9,9 @@ point 4; docs/operations.md "Command line"), checked from what a user sees:
             unknown option '...'"), with the closest valid one when there is
             one, even when a required option is missing too.
   errors    every command's errors are "exodaq <command>: <what>".
+  json      --json output: one object, one key per line, numbers without
+            rounding noise (fk: palm at [0, 0, -0.297], not -0.29699999999999999
+            or -5e-17).
   docs      every option written after `exodaq <command>` or `exodaqd` in
             docs/*.md and README.md exists in that command's --help.
 
@@ -177,6 +180,28 @@ def check_errors(a):
     print("errors: every command's error lines start 'exodaq <command>: ' and name file and reason")
 
 
+def check_json(a):
+    import json
+    r = run([a.exodaq, "fk", "--joints-deg", "45,-90,90,0,0,0", "--json"])
+    if r.returncode != 0:
+        fail("fk --json: %s" % r.stderr)
+    obj = json.loads(r.stdout)
+    if obj["palm_position_m"] != [0, 0, -0.297] or obj["elbow_position_m"] != [0, 0, -0.145]:
+        fail("fk --json: palm %s, elbow %s" % (obj["palm_position_m"], obj["elbow_position_m"]))
+    if "e-1" in r.stdout or "9999999" in r.stdout or "-0," in r.stdout or "-0]" in r.stdout:
+        fail("fk --json prints rounding noise:\n" + r.stdout)
+    lines = r.stdout.rstrip("\n").split("\n")
+    if lines[0] != "{" or lines[-1] != "}" or \
+            any(not re.match(r'^  "[a-z_]+": .*[^,]?$', l) for l in lines[1:-1]):
+        fail("fk --json is not one key per line:\n" + r.stdout)
+    r = run([a.exodaq, "ik", "--palm-position", "0,0,-0.297", "--palm-quaternion",
+             "0,0.382683,0.92388,0", "--json"])
+    obj = json.loads(r.stdout)
+    if not obj["solutions"]:
+        fail("ik --json: no solutions:\n" + r.stdout)
+    print("json: fk and ik print one object, one key per line, without rounding noise")
+
+
 def invocations(text, names):
     """(command, [options]) for each `exodaq <command> ...` / `exodaqd ...` in text."""
     text = re.sub(r"\\\n\s*", " ", text)  # shell line continuations
@@ -245,13 +270,13 @@ def check_docs(a):
 
 def main(argv):
     ap = argparse.ArgumentParser()
-    ap.add_argument("mode", choices=["grammar", "unknown", "errors", "docs"])
+    ap.add_argument("mode", choices=["grammar", "unknown", "errors", "json", "docs"])
     ap.add_argument("--exodaq", required=True)
     ap.add_argument("--exodaqd", required=True)
     ap.add_argument("--source", required=True)
     a = ap.parse_args(argv)
     {"grammar": check_grammar, "unknown": check_unknown, "errors": check_errors,
-     "docs": check_docs}[a.mode](a)
+     "json": check_json, "docs": check_docs}[a.mode](a)
     return 0
 
 

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -434,6 +435,33 @@ TEST_F(ToolFiles, ConfigAndModelInputsAreRegularFilesWithinTheLimit) {
   EXPECT_EQ(r.err, "exodaqd: " + dir_ +
                        "/big.yaml: is 4194305 bytes, more than the 4194304-byte limit for this "
                        "input\n");
+}
+
+// Issue 16 "small items": the simulated rig (clock.require_sync: ignore) on a
+// machine without NTP showed "clock NOT SYNCHRONISED, est error 16000000.0 us".
+TEST(ToolStatus, AnIgnoredClockIsNotShoutedAndNoEstimateIsUnknown) {
+  const std::string dir = test::make_temp_dir("status-clock");
+  const std::string src = EXODAQ_SOURCE_DIR "/config/";
+  std::string text = read_text(src + "sim.yaml");
+  text.replace(text.find("\nmodel: "), 8, "\nmodel: " + src);
+  text.replace(text.find("\ncalibration: "), 14, "\ncalibration: " + src);
+  text.replace(text.find("prefix: \"\""), 10, "prefix: \"" + test::unique_prefix("clk") + "\"");
+  const std::string config = dir + "/sim.yaml";
+  write_text(config, text);
+  test::Process daemon({EXODAQD, "-c", config, "--duration", "20"}, dir + "/d.out", dir + "/d.err");
+  const auto r = test::run({EXODAQ_TOOL, "status", "-c", config, "--timeout", "10"});
+  daemon.signal(SIGINT);
+  daemon.wait(std::chrono::seconds(10));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::size_t at = r.out.find("\nclock    ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const std::string clock = r.out.substr(at + 1, r.out.find('\n', at + 1) - at - 1);
+  // Synchronised on a machine with NTP; otherwise said to be ignored.
+  EXPECT_TRUE(clock.rfind("clock    synchronised", 0) == 0 ||
+              clock.rfind("clock    not synchronised (ignored: clock.require_sync: ignore)", 0) ==
+                  0)
+      << clock;
+  EXPECT_EQ(clock.find("16000000"), std::string::npos) << clock;
 }
 
 }  // namespace

@@ -293,6 +293,10 @@ int run_echo(EchoOptions opt) {
     print_error(write_error);
     return kExitFailure;
   }
+  if (common_options().verbose) {
+    print_error(std::to_string(received) + " messages on " + channel + " from " + opt.url + ", " +
+                std::to_string(subscriber.undecodable()) + " undecodable");
+  }
   if (csv) {
     csv_out->commit();  // throws FileError with the reason
   } else {

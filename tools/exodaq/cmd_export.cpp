@@ -183,6 +183,10 @@ int run_export(const ExportOptions& o, bool prefix_given) {
   files::check_output(o.out, oo);
   const std::string prefix =
       choose_prefix(o.log, prefix_given ? std::optional(o.prefix) : std::nullopt);
+  if (common_options().verbose) {
+    print_error("reading " + msg::channel_name(prefix, msg::Kind::kJointState) + " and " +
+                msg::channel_name(prefix, msg::Kind::kPalmPose) + " of " + o.log);
+  }
   files::OutputFile out(o.out, oo);
   const CsvExport r = export_log_csv(o.log, prefix, out);
   if (r.rows == 0) {

@@ -231,7 +231,7 @@ void report_issues(const drivers::ReplaySource& replay, const drivers::ReplayLoa
                                    ? summary.bad_lines
                                    : static_cast<std::int64_t>(issues.size());
     std::fprintf(stderr, "exodaq replay: %lld problem(s) in %s:\n", ll(total), input.c_str());
-    constexpr std::size_t kShown = 50;
+    const std::size_t kShown = common_options().verbose ? issues.size() : 50;  // -v: all
     for (std::size_t i = 0; i < issues.size() && i < kShown; ++i) {
       std::fprintf(stderr, "  %s:%lld: %s\n", input.c_str(), ll(issues[i].line),
                    issues[i].what.c_str());

@@ -1,10 +1,10 @@
 #pragma once
 // JSON output shared by the commands that print --json (fk, ik, status): one
-// object, one key per line, arrays of numbers on one line. Numbers:
-// json_number() is exact (the shortest text that reads back to the same
-// double; -0 as 0); json_measure() is for computed geometry: 12 significant
-// digits, and magnitudes below 1e-12 (floating-point noise of the
-// trigonometry: -5e-17) as 0. NaN and infinities are null.
+// object, one key per line, arrays of numbers on one line. Numbers are the
+// shortest text that reads back to the same double (-0.297, not
+// -0.29699999999999999; -0 as 0); json_measure(), for computed geometry, also
+// writes magnitudes below 1e-12 (floating-point noise of the trigonometry,
+// -5e-17) as 0. NaN and infinities are null.
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -42,10 +42,7 @@ inline constexpr double kJsonNoise = 1e-12;
 
 inline std::string json_measure(double v) {
   if (!std::isfinite(v)) return "null";
-  if (std::abs(v) < kJsonNoise) return "0";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.12g", v);
-  return buf;
+  return std::abs(v) < kJsonNoise ? "0" : msg::csv::number(v);
 }
 
 // A number already written as text (the CSV schema's values): as it is, or
