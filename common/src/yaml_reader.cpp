@@ -1,5 +1,6 @@
 #include "exodaq/config/yaml_reader.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -19,21 +20,31 @@ std::string format(const std::string& file, int line, const std::string& what) {
   return file + ": " + what;
 }
 
-// Whether `other` (a key nobody asked for yet) may be a sibling of `key`
-// that the reader will ask for later rather than a misspelling of it:
-// numbered siblings (d2/d3, dtheta1_deg/dtheta4_deg) and short keys one
-// letter apart (a3/d3, dd3_mm/da3_mm, x_mm/y_mm).
-bool maybe_sibling(const std::string& other, const std::string& key) {
-  if (other.size() != key.size()) return false;
-  int differ = 0;
-  bool digits_only = true;
-  for (std::size_t i = 0; i < key.size(); ++i) {
-    if (other[i] == key[i]) continue;
-    ++differ;
-    digits_only = digits_only && std::isdigit(static_cast<unsigned char>(other[i])) &&
-                  std::isdigit(static_cast<unsigned char>(key[i]));
+// Whether `unknown` (a key nobody asked for) is most likely `known`
+// misspelled. Long keys: within files::typo_allowance, unless they differ
+// only in digits (dtheta1_deg/dtheta4_deg are siblings). Short keys (up to 6
+// characters) are often siblings (a3/d3, dx_mm/dd5_mm, x_mm/y_mm): only one
+// letter added or dropped (rigg/rig), or two letters swapped (modle/model).
+bool likely_misspelling(const std::string& unknown, const std::string& known) {
+  const int d = files::edit_distance(unknown, known);
+  if (d == 0) return false;
+  if (unknown.size() == known.size()) {
+    bool digits_only = true;
+    for (std::size_t i = 0; i < known.size(); ++i) {
+      if (unknown[i] != known[i]) {
+        digits_only = digits_only && std::isdigit(static_cast<unsigned char>(unknown[i])) &&
+                      std::isdigit(static_cast<unsigned char>(known[i]));
+      }
+    }
+    if (digits_only) return false;
   }
-  return digits_only || (differ == 1 && key.size() <= 6);
+  if (known.size() > 6) return d <= files::typo_allowance(known);
+  if (unknown.size() != known.size()) return d == 1;
+  std::string a = unknown;
+  std::string b = known;
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  return a == b && d <= 2;
 }
 
 const char* kind_name(const YAML::Node& n) {
@@ -134,9 +145,7 @@ YAML::Node MapReader::child(const std::string& key) {
     // misspelled: name it rather than only the missing field.
     for (auto it = node_.begin(); it != node_.end(); ++it) {
       if (!it->first.IsScalar() || consumed_.count(it->first.Scalar()) > 0) continue;
-      const std::string& other = it->first.Scalar();
-      if (files::edit_distance(other, key) <= files::typo_allowance(key) &&
-          !maybe_sibling(other, key)) {
+      if (likely_misspelling(it->first.Scalar(), key)) {
         fail(it->first, "unknown key '" + it->first.Scalar() + "' in " + context_ +
                             ": did you mean '" + key + "'? (missing field '" + key + "')");
       }
@@ -280,8 +289,9 @@ void MapReader::finish() const {
     if (consumed_.count(key) == 0) {
       std::string known;
       for (const auto& k : consumed_) known += (known.empty() ? "" : ", ") + k;
-      const std::string near =
+      std::string near =
           files::closest_match(key, std::vector<std::string>(consumed_.begin(), consumed_.end()));
+      if (!near.empty() && !likely_misspelling(key, near)) near.clear();  // a6: a3 or a5?
       throw ConfigError(file_, line_of(it->first),
                         "unknown key '" + key + "' in " + context_ +
                             (near.empty() ? std::string() : ": did you mean '" + near + "'?") +

@@ -164,8 +164,8 @@ T load_referenced(const std::string& config_file, const YAML::Node& at, const st
     (void)files::check_input(path, files::kMaxYamlBytes);
   } catch (const files::FileError& e) {
     const std::string written = at.IsScalar() ? at.Scalar() : path;
-    std::string where = "'" + path + "'";
-    if (written != path) where += " ('" + written + "' relative to the config's folder)";
+    const std::string where =
+        written == path ? path : "'" + written + "', relative to the config's folder: " + path;
     throw ConfigError(config_file, line_of(at), key + " file " + where + ": " + e.reason());
   }
   return load(path);

@@ -428,6 +428,20 @@ TEST_F(ToolFiles, ConfigAndModelInputsAreRegularFilesWithinTheLimit) {
   // A directory said "empty document".
   r = test::run({EXODAQD, "-c", dir_, "--check-config"});
   EXPECT_EQ(r.err, "exodaqd: " + dir_ + ": is a directory, not a regular file\n");
+  // A missing file named by the config: the config's file:line, the path as
+  // written and as resolved (it was: the path only, relative to a folder
+  // nobody named).
+  fs::create_directories(dir_ + "/etc");
+  std::string cfg = read_text(g_rec->config);
+  const std::size_t m = cfg.find("\nmodel: ");
+  cfg.replace(m, cfg.find('\n', m + 1) - m, "\nmodel: models/nope.yaml");
+  write_text(dir_ + "/etc/exodaqd.yaml", cfg);
+  int line = 1;
+  for (std::size_t i = 0; i <= m; ++i) line += cfg[i] == '\n';
+  r = test::run({EXODAQD, "-c", dir_ + "/etc/exodaqd.yaml", "--check-config"});
+  EXPECT_EQ(r.err, "exodaqd: " + dir_ + "/etc/exodaqd.yaml:" + std::to_string(line) +
+                       ": model file 'models/nope.yaml', relative to the config's folder: " + dir_ +
+                       "/etc/models/nope.yaml: cannot open: No such file or directory\n");
   // Over the documented limit, refused before reading.
   write_text(dir_ + "/big.yaml", "rig: x\n");
   ASSERT_EQ(::truncate((dir_ + "/big.yaml").c_str(), (4 << 20) + 1), 0);
