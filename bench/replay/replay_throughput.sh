@@ -20,7 +20,7 @@ i=0
 while [ "$i" -lt "$runs" ]; do
   i=$((i + 1))
   /usr/bin/time -f "%e %U %S" -o "$work/time" $pin "$build/tools/exodaq" replay "$work/in.lcm" \
-    --config "$src/config/sim.yaml" --out "$work/out.lcm" --speed max --quiet | sed -n '3p'
+    -c "$src/config/sim.yaml" -o "$work/out.lcm" --speed max | sed -n '3p'
   awk -v c="$cycles" '{
     cpu = $2 + $3
     printf "  end to end (process): %d cycles, %.3f s wall = %.0f cycles/s; %.3f s CPU = %.0f cycles per CPU second (%.0fx real time)\n",
