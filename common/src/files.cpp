@@ -58,6 +58,11 @@ bool check_target(const std::string& path, const std::string& target, const Outp
       throw FileError(path, "is " + file_kind(st.st_mode) + shown +
                                 ", not a regular file: not replaced (name a file to write)");
     }
+    // A file the user may not write is not replaced behind its back by the
+    // rename (the folder being writable is not the file being writable).
+    if (::access(target.c_str(), W_OK) != 0) {
+      throw FileError(path, "cannot write: " + errno_text(errno));
+    }
     for (const std::string& in : o.inputs) {
       struct stat ist {};
       if (in != "-" && ::stat(in.c_str(), &ist) == 0 && ist.st_dev == st.st_dev &&

@@ -190,7 +190,8 @@ EncoderSeries read_joint_state_log(const std::string& path, const EncoderReadOpt
     } else if (prefixes.size() != 1) {
       throw ConfigError(path, 0,
                         prefixes.empty() ? "an LCM log without joint states (no "
-                                           "*EXO_JOINT_STATE channel)"
+                                           "*EXO_JOINT_STATE channel; with -c CONFIG its raw "
+                                           "channel is re-processed)"
                                          : "holds several rigs: choose one with --prefix");
     } else {
       prefix = *prefixes.begin();

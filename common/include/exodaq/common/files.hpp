@@ -7,7 +7,8 @@
 //  - outputs (OutputFile): written to a temporary file beside the target,
 //    fsync'ed, renamed over the target only when complete; a symlink is
 //    followed (its target replaced, the link kept); anything that is not a
-//    regular file is refused, and so is an output that is one of the inputs;
+//    regular file is refused, and so are a file the user may not write and an
+//    output that is one of the inputs;
 //    every error names the file and errno's reason, and leaves no partial
 //    file. "-" is standard output where the caller allows it (text outputs).
 // Errors are FileError "<file>: <what>". Off the loop thread only.
