@@ -207,6 +207,87 @@ class CsvEcho {
   std::vector<std::string> values_;
 };
 
+// What one echo run shares between its subscriptions and its loop.
+struct EchoRun {
+  const EchoOptions& opt;
+  std::string channel;  // the channel counted and printed
+  std::optional<msg::Kind> kind;
+  bool csv = false;
+  std::optional<CsvEcho> csv_out;
+  Table table;
+  int64_t received = 0;     // messages on the chosen channel
+  std::string write_error;  // the first failed write (stops the loop)
+  explicit EchoRun(const EchoOptions& o) : opt(o), table(o) {}
+};
+
+void subscribe(EchoRun& run, msg::Subscriber& subscriber) {
+  if (run.csv) {
+    subscriber.subscribe(run.channel, run.kind, [&run](const msg::Received& r) {
+      if ((run.opt.count > 0 && run.received >= run.opt.count) || !run.write_error.empty()) return;
+      try {
+        if (run.csv_out->on(r)) ++run.received;
+      } catch (const files::FileError& e) {  // not through LCM's C frames
+        run.write_error = e.what();
+      }
+    });
+    return;
+  }
+  std::vector<std::string> channels;
+  for (auto k : msg::kAllKinds) channels.push_back(msg::channel_name(run.opt.prefix, k));
+  if (!run.kind) channels.push_back(run.channel);
+  for (const auto& c : channels) {
+    subscriber.subscribe(c, std::nullopt, [&run, c](const msg::Received& r) {
+      run.table.on(r, mono_now_ns());
+      if (c == run.channel) ++run.received;
+    });
+  }
+}
+
+// Until --count, --duration, a signal or a write error: kExitOk or kExitFailure.
+int echo_loop(EchoRun& run, msg::Subscriber& subscriber) {
+  const EchoOptions& opt = run.opt;
+  const int64_t start = mono_now_ns();
+  const int64_t end = opt.duration > 0 ? start + static_cast<int64_t>(opt.duration * 1e9) : 0;
+  constexpr int64_t kRefreshNs = 100'000'000;
+  int64_t next_draw = start;
+  int64_t last_flush = start;
+  while (!g_stop && run.write_error.empty()) {
+    if (opt.count > 0 && run.received >= opt.count) break;
+    int64_t now = mono_now_ns();
+    if (end && now >= end) {
+      if (opt.count > 0 && run.received < opt.count) {
+        print_error(std::to_string(run.received) + " of " + std::to_string(opt.count) +
+                    " messages on " + run.channel + " within " + msg::csv::number(opt.duration) +
+                    " s");
+        return kExitFailure;
+      }
+      break;
+    }
+    if (!run.csv && now >= next_draw) {
+      run.table.render(now);
+      next_draw = now + kRefreshNs;
+    }
+    int64_t wait_ns = run.csv ? kRefreshNs : next_draw - now;
+    if (end) wait_ns = std::min(wait_ns, end - now);
+    const int timeout_ms = static_cast<int>(std::max<int64_t>(1, (wait_ns + 999'999) / 1'000'000));
+    const int r = subscriber.handle(timeout_ms);
+    if (r < 0 && !g_stop) {
+      print_error("LCM receive failed");
+      return kExitFailure;
+    }
+    now = mono_now_ns();
+    if (run.csv && run.write_error.empty() && (r == 0 || now - last_flush >= kRefreshNs)) {
+      try {
+        run.csv_out->flush();
+      } catch (const files::FileError& e) {
+        run.write_error = e.what();
+      }
+      last_flush = now;
+    }
+  }
+  return kExitOk;
+}
+
 int run_echo(EchoOptions opt) {
   if (!opt.config.empty()) {
     const config::ServiceConfig cfg = config::load_service_config(opt.config);
@@ -214,93 +295,30 @@ int run_echo(EchoOptions opt) {
     if (!opt.prefix_given) opt.prefix = cfg.lcm.prefix;
     opt.clock_policy = cfg.clock.require_sync;
   }
-  const bool csv = opt.csv || opt.out != "-" || !isatty(STDOUT_FILENO);
-  const auto kind = msg::parse_kind(opt.channel);
+  EchoRun run(opt);
+  run.csv = opt.csv || opt.out != "-" || !isatty(STDOUT_FILENO);
+  run.kind = msg::parse_kind(opt.channel);
   // A name we do not know is a literal channel; its type comes from the payload.
-  const std::string channel = kind ? msg::channel_name(opt.prefix, *kind) : opt.channel;
-
-  std::optional<CsvEcho> csv_out;
-  if (csv) csv_out.emplace(opt.out, kind);
+  run.channel = run.kind ? msg::channel_name(opt.prefix, *run.kind) : opt.channel;
+  if (run.csv) run.csv_out.emplace(opt.out, run.kind);
   msg::Subscriber subscriber(opt.url);
   install_stop_handlers();
+  subscribe(run, subscriber);
+  if (!run.csv) std::fputs("\x1b[?25l", stdout);  // hide the cursor while redrawing
 
-  int64_t received = 0;  // messages on the chosen channel
-  std::string write_error;
-  Table table(opt);
-  if (csv) {
-    subscriber.subscribe(channel, kind, [&](const msg::Received& r) {
-      if ((opt.count > 0 && received >= opt.count) || !write_error.empty()) return;
-      try {
-        if (csv_out->on(r)) ++received;
-      } catch (const files::FileError& e) {  // not through LCM's C frames
-        write_error = e.what();
-      }
-    });
-  } else {
-    std::vector<std::string> channels;
-    for (auto k : msg::kAllKinds) channels.push_back(msg::channel_name(opt.prefix, k));
-    if (!kind) channels.push_back(channel);
-    for (const auto& c : channels) {
-      subscriber.subscribe(c, std::nullopt, [&, c](const msg::Received& r) {
-        table.on(r, mono_now_ns());
-        if (c == channel) ++received;
-      });
-    }
-    std::fputs("\x1b[?25l", stdout);  // hide the cursor while redrawing
-  }
-
-  const int64_t start = mono_now_ns();
-  const int64_t end = opt.duration > 0 ? start + static_cast<int64_t>(opt.duration * 1e9) : 0;
-  constexpr int64_t kRefreshNs = 100'000'000;
-  int64_t next_draw = start;
-  int64_t last_flush = start;
-  int rc = kExitOk;
-  while (!g_stop && write_error.empty()) {
-    if (opt.count > 0 && received >= opt.count) break;
-    int64_t now = mono_now_ns();
-    if (end && now >= end) {
-      if (opt.count > 0 && received < opt.count) {
-        print_error(std::to_string(received) + " of " + std::to_string(opt.count) +
-                    " messages on " + channel + " within " + msg::csv::number(opt.duration) + " s");
-        rc = kExitFailure;
-      }
-      break;
-    }
-    if (!csv && now >= next_draw) {
-      table.render(now);
-      next_draw = now + kRefreshNs;
-    }
-    int64_t wait_ns = csv ? kRefreshNs : next_draw - now;
-    if (end) wait_ns = std::min(wait_ns, end - now);
-    const int timeout_ms = static_cast<int>(std::max<int64_t>(1, (wait_ns + 999'999) / 1'000'000));
-    const int r = subscriber.handle(timeout_ms);
-    if (r < 0 && !g_stop) {
-      print_error("LCM receive failed");
-      rc = kExitFailure;
-      break;
-    }
-    now = mono_now_ns();
-    if (csv && write_error.empty() && (r == 0 || now - last_flush >= kRefreshNs)) {
-      try {
-        csv_out->flush();
-      } catch (const files::FileError& e) {
-        write_error = e.what();
-      }
-      last_flush = now;
-    }
-  }
-  if (!write_error.empty()) {
-    print_error(write_error);
+  const int rc = echo_loop(run, subscriber);
+  if (!run.write_error.empty()) {
+    print_error(run.write_error);
     return kExitFailure;
   }
   if (common_options().verbose) {
-    print_error(std::to_string(received) + " messages on " + channel + " from " + opt.url + ", " +
-                std::to_string(subscriber.undecodable()) + " undecodable");
+    print_error(std::to_string(run.received) + " messages on " + run.channel + " from " + opt.url +
+                ", " + std::to_string(subscriber.undecodable()) + " undecodable");
   }
-  if (csv) {
-    csv_out->commit();  // throws FileError with the reason
+  if (run.csv) {
+    run.csv_out->commit();  // throws FileError with the reason
   } else {
-    table.render(mono_now_ns());
+    run.table.render(mono_now_ns());
     std::fputs("\x1b[?25h", stdout);
   }
   std::fflush(stdout);
