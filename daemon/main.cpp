@@ -35,7 +35,7 @@ std::string unknown_option(const CLI::App& app, int argc, char** argv) {
     const std::string a = argv[i];
     if (a == "--") break;
     if (a.size() < 2 || a[0] != '-' || std::isdigit(static_cast<unsigned char>(a[1]))) continue;
-    const std::string name = a[1] == '-' ? a.substr(0, a.find('=')) : a.substr(0, 2);
+    std::string name = a[1] == '-' ? a.substr(0, a.find('=')) : a.substr(0, 2);
     if (app.get_option_no_throw(name) == nullptr) return name;
   }
   return "";

@@ -87,20 +87,17 @@ std::string unknown_option(const CLI::App& sub, int argc, char** argv, int from)
     if (a == "--") break;
     if (a.size() < 2 || a[0] != '-') continue;
     if (std::isdigit(static_cast<unsigned char>(a[1])) || a[1] == '.') continue;  // -90, -.5
-    std::string name;
     if (a[1] == '-') {
-      name = a.substr(0, a.find('='));
-    } else {
-      name = a.substr(0, 2);  // -c FILE, -cFILE, -qv
-      for (std::size_t k = 1; k < a.size(); ++k) {
-        const std::string s = std::string("-") + a[k];
-        const CLI::Option* o = sub.get_option_no_throw(s);
-        if (o == nullptr) return s;
-        if (o->get_type_size() != 0) break;  // the rest is its value
-      }
+      std::string name = a.substr(0, a.find('='));
+      if (sub.get_option_no_throw(name) == nullptr) return name;
       continue;
     }
-    if (sub.get_option_no_throw(name) == nullptr) return name;
+    for (std::size_t k = 1; k < a.size(); ++k) {  // -c FILE, -cFILE, -qv
+      std::string s = std::string("-") + a[k];
+      const CLI::Option* o = sub.get_option_no_throw(s);
+      if (o == nullptr) return s;
+      if (o->get_items_expected_max() != 0) break;  // the rest is its value
+    }
   }
   return "";
 }
