@@ -134,6 +134,9 @@ def check_unknown(a):
     r = run([a.exodaq, "replay", "--confg", "x.yaml"])
     if "unknown option '--confg'; did you mean '--config'?" not in r.stderr:
         fail("exodaq replay --confg: %r" % r.stderr)
+    r = run([a.exodaq, "fk", "-qx"])  # clustered short flags, one unknown
+    if r.returncode != 2 or not r.stderr.startswith("exodaq fk: unknown option '-x'"):
+        fail("exodaq fk -qx: %r" % r.stderr)
     r = run([a.exodaq, "exprot"])
     if r.returncode != 2 or "unknown command 'exprot'; did you mean 'export'?" not in r.stderr:
         fail("exodaq exprot: %r" % r.stderr)
