@@ -9,8 +9,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <numbers>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -102,6 +104,17 @@ TEST(CsvSchema, GoldenCycleHeader) {
             "palm_x_m,palm_y_m,palm_z_m,palm_qw,palm_qx,palm_qy,palm_qz,"
             "elbow_x_m,elbow_y_m,elbow_z_m,manipulability,manipulability_raw,near_singular,"
             "palm_valid,palm_invalid_reason");
+}
+
+// docs/messages.md "CSV" shows the same header, so the page cannot drift.
+TEST(CsvSchema, MessagesMdShowsTheCycleHeader) {
+  std::ifstream in(std::string(EXODAQ_SOURCE_DIR) + "/docs/messages.md");
+  std::stringstream doc;
+  doc << in.rdbuf();
+  const std::string header = joined(msg::csv::cycle_header(msg::csv::joint_columns(kNames)));
+  EXPECT_NE(doc.str().find("\n" + header + "\n"), std::string::npos)
+      << "docs/messages.md does not show:\n"
+      << header;
 }
 
 TEST(CsvSchema, GoldenHeadersOfEachKind) {
