@@ -14,15 +14,16 @@ author would, against a live exodaqd on the simulated rig.
    through PYTHONPATH=DIR alone. Either way PYTHONPATH holds nothing of the
    source or build tree, and `import exodaq` must resolve into the install.
 3. exodaqd runs config/sim.yaml on an LCM port of its own and a private
-   channel prefix (started before the install: the simulated rig homes its
-   six joints one after the other, all homed about 10.3 s after start); the
-   subscriber runs from that directory until S seconds after the daemon's
-   start (at least 4 s), and `exodaq echo --csv` records the same joint
+   channel prefix; the simulated rig homes its six joints one after the
+   other, all homed about 10.3 s after start. The subscriber runs from that
+   directory from the daemon's start until S seconds after it, so it sees
+   unhomed and homed joints, and `exodaq echo --csv` records the same joint
    states and palm poses meanwhile.
 4. Asserted: the subscriber received both kinds, decoded nothing wrong, its
    printed angles, palm positions, validity and flag names equal what the C++
-   tool decoded for the same seq (names from the .lcm constants), joints
-   homed and palm poses became valid, and it named the daemon's state.
+   tool decoded for the same seq (names from the .lcm constants), it saw
+   joints unhomed (named UNHOMED) and then homed, palm poses invalid and then
+   valid, and it named the daemon's state.
 """
 import argparse
 import ast
@@ -199,6 +200,8 @@ def run(args, tmp):
     script = os.path.join(work, "exodaq_subscriber.py")
     with open(script, "w") as f:
         f.write(docs_block(os.path.join(args.source_dir, "docs", "messages.md")))
+    py, env, home = install(args, tmp)
+    check_import(py, env, home, work)
     prefix = "TPY_%d_%06d_" % (os.getpid(), random.randrange(10 ** 6))
     url = "udpm://239.255.76.67:%d?ttl=0" % (20000 + (os.getpid() * 13 + random.randrange(89)) % 20000)
     config = write_config(args, tmp, url, prefix)
@@ -207,7 +210,7 @@ def run(args, tmp):
     daemon = subprocess.Popen([args.exodaqd, "--config", config], stdout=log, stderr=log)
     procs = [daemon]
     try:
-        return run_with_daemon(args, tmp, work, url, prefix, started, procs)
+        return run_with_daemon(args, tmp, work, url, prefix, started, procs, py, env)
     finally:
         for p in procs:
             if p.poll() is None:
@@ -220,8 +223,7 @@ def run(args, tmp):
         log.close()
 
 
-def run_with_daemon(args, tmp, work, url, prefix, started, procs):
-    py, env, home = install(args, tmp)
+def check_import(py, env, home, work):
     r = subprocess.run([py, "-c", "import exodaq, exodaq_lcm; print(exodaq.__file__); "
                         "print(exodaq_lcm.__file__); print(exodaq.__version__)"],
                        cwd=work, env=env, capture_output=True, text=True)
@@ -233,14 +235,18 @@ def run_with_daemon(args, tmp, work, url, prefix, started, procs):
               "exodaq imported from %s, not from the install in %s" % (path, home))
     print("package %s imported from %s" % (where[2], os.path.dirname(where[0])))
 
+
+def run_with_daemon(args, tmp, work, url, prefix, started, procs, py, env):
     daemon = procs[0]
     check(daemon.poll() is None, "exodaqd exited %s" % daemon.returncode)
-    seconds = round(max(4.0, args.until - (time.monotonic() - started)), 1)
-    echo = {}
+    seconds = round(args.until - (time.monotonic() - started), 1)
+    echo, files = {}, {}
     for kind in ("joint_state", "palm_pose"):
+        # To files: a pipe nobody reads while the subscriber runs would stall echo.
+        files[kind] = open(os.path.join(tmp, kind + ".csv"), "w+")
         echo[kind] = subprocess.Popen(
             [args.exodaq, "echo", "--csv", "--url", url, "--prefix", prefix, "--channel", kind,
-             "--duration", str(seconds + 1)], stdout=subprocess.PIPE,
+             "--duration", str(seconds + 1)], stdout=files[kind],
             stderr=subprocess.PIPE, text=True)
         procs.append(echo[kind])
     sub = subprocess.Popen([py, "exodaq_subscriber.py", "--url", url, "--prefix", prefix,
@@ -249,15 +255,20 @@ def run_with_daemon(args, tmp, work, url, prefix, started, procs):
                            text=True)
     procs.append(sub)
     out, err = sub.communicate(timeout=seconds + 60)
-    echoed = {k: p.communicate(timeout=seconds + 60) for k, p in echo.items()}
+    echo_err = {k: p.communicate(timeout=seconds + 60)[1] for k, p in echo.items()}
     check(daemon.poll() is None, "exodaqd exited %s during the run" % daemon.returncode)
     print("subscriber ran %.1f s, until %.1f s after the daemon's start" % (
         seconds, time.monotonic() - started))
     check(sub.returncode == 0, "the subscriber exited %d:\n%s%s" % (sub.returncode, out, err))
     check(not err.strip(), "the subscriber wrote to stderr:\n%s" % err)
-    for k, (eout, eerr) in echoed.items():
-        check(echo[k].returncode == 0, "exodaq echo %s exited %d: %s" % (k, echo[k].returncode, eerr))
-    return out, prefix, {k: echo_rows(v[0], k) for k, v in echoed.items()}
+    rows = {}
+    for k, f in files.items():
+        check(echo[k].returncode == 0, "exodaq echo %s exited %d: %s" % (
+            k, echo[k].returncode, echo_err[k]))
+        f.seek(0)
+        rows[k] = echo_rows(f.read(), k)
+        f.close()
+    return out, prefix, rows
 
 
 def main():
@@ -268,7 +279,7 @@ def main():
     ap.add_argument("--python", required=True, help="the interpreter to install for / run")
     ap.add_argument("--wheel", help="install this wheel into a new virtual environment")
     ap.add_argument("--site", help="the package is installed in this directory")
-    ap.add_argument("--until", type=float, default=14.0,
+    ap.add_argument("--until", type=float, default=13.0,
                     help="run the subscriber until this long after the daemon's start")
     args = ap.parse_args()
     check(bool(args.wheel) != bool(args.site), "give one of --wheel, --site")
@@ -299,9 +310,17 @@ def main():
     mj = check_joints(joints, echo["joint_state"], joint_bits, sample_bits)
     mp = check_palms(palms, joints, echo["palm_pose"], reason_bits)
     check(mj >= 10 and mp >= 10, "only %d joints and %d palm lines had a seq that exodaq echo "
-          "also received" % (mj, mp))
+          "also received: subscriber seq %s..%s, echo joint_state %d rows seq %s..%s, palm_pose "
+          "%d rows seq %s..%s" % (mj, mp, min(joints, default=None), max(joints, default=None),
+                                  len(echo["joint_state"]), min(echo["joint_state"]),
+                                  max(echo["joint_state"]), len(echo["palm_pose"]),
+                                  min(echo["palm_pose"]), max(echo["palm_pose"])))
     check(any(j[1] == "111111" for j in joints.values()), "no cycle with every joint usable")
+    check(any("UNHOMED" in j[2] and "0" in j[1] for j in joints.values()),
+          "no cycle with an unhomed joint named UNHOMED")
     check(any(p[0] for p in palms.values()), "no valid palm pose")
+    check(any(not p[0] and "UNHOMED" in p[2].split("|") for p in palms.values()),
+          "no palm pose invalid for reason UNHOMED")
     check(states and all(s[0] == prefix + "EXO_STATUS" for s in states), "status lines %s" % states)
     check(all(s[1] in ("STARTING", "HOMING", "RUNNING", "DEGRADED", "FAULT", "STOPPING")
               for s in states), "state names %s" % states)
