@@ -2,7 +2,8 @@
 #
 # Layout, for CMAKE_INSTALL_PREFIX=/usr (the .deb, and `cmake --install build --prefix /usr`):
 #   /usr/bin/exodaqd, exodaq, exodaq-board-sim, lcm-spy-exodaq   (their own directories' rules)
-#   /usr/share/exodaq/lcmtypes/                                  (lcmtypes/: .lcm, jar, Python)
+#   /usr/share/exodaq/lcmtypes/                                  (lcmtypes/: .lcm, jar)
+#   /usr/lib/python3/dist-packages/exodaq/, exodaq_lcm.py         (tools/python: the Python package)
 #   /etc/exodaq/exodaqd.yaml, sim.yaml, vcan.yaml, models/, calibration/   (conffiles)
 #   /lib/systemd/system/exodaqd.service
 #   /usr/lib/sysusers.d/exodaq.conf
@@ -104,7 +105,9 @@ set(CPACK_STRIP_FILES ON)
 # systemd: systemd-sysusers in postinst and the unit; the rest is for clients and the rig.
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "systemd")
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "chrony | time-daemon, can-utils")
-set(CPACK_DEBIAN_PACKAGE_SUGGESTS "liblcm-java, default-jre-headless, python3, python3-lcm")
+# The Python package needs only python3's standard library (Debian 12 has no LCM
+# Python module; the package brings its own receiver).
+set(CPACK_DEBIAN_PACKAGE_SUGGESTS "liblcm-java, default-jre-headless, python3")
 
 # Maintainer scripts and conffiles, generated into the build tree.
 set(_exodaq_deb ${CMAKE_BINARY_DIR}/debian)
@@ -136,6 +139,10 @@ if [ "$1" = "configure" ]; then
         adduser --system --group --no-create-home --home / \
             --gecos "exodaq acquisition service" exodaq
     fi
+    # The Python package's byte code, as dh_python3 does (py3clean in prerm).
+    if [ -z "$DPKG_ROOT" ] && command -v py3compile >/dev/null 2>&1; then
+        py3compile -p exodaq
+    fi
     if [ -z "$DPKG_ROOT" ] && [ -d /run/systemd/system ]; then
         systemctl daemon-reload || true
         # An upgrade: the running service moves to the new binary. A first
@@ -152,6 +159,9 @@ file(WRITE ${_exodaq_deb}/prerm [==[#!/bin/sh
 set -e
 if [ "$1" = "remove" ] && [ -z "$DPKG_ROOT" ] && [ -d /run/systemd/system ]; then
     systemctl stop exodaqd.service || true
+fi
+if [ -z "$DPKG_ROOT" ] && command -v py3clean >/dev/null 2>&1; then
+    py3clean -p exodaq
 fi
 exit 0
 ]==])
