@@ -55,7 +55,7 @@ config::ServiceConfig sim_config() {
   return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
-// The daemon's wiring (daemon_runtime.cpp) with a counting sink instead of LCM.
+// The daemon's wiring (build_acquisition) with a counting sink instead of LCM.
 struct Rig {
   config::ServiceConfig cfg = sim_config();
   CountingSink* sink = nullptr;
@@ -65,23 +65,14 @@ struct Rig {
   std::int64_t k = 0;  // cycles run
 
   Rig() {
-    core::AcquisitionConfig ac;
-    ac.rig = cfg.rig;
     period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.rate_hz);
-    ac.period_ns = period_ns;
-    ac.status_every_cycles =
-        std::max(1, static_cast<int>(cfg.loop.rate_hz / cfg.loop.status_rate_hz + 0.5));
-    ac.publish_raw = cfg.lcm.publish_raw;
-    ac.clock = cfg.clock;
-    for (int i = 0; i < core::kJointCount; ++i)
-      ac.joint_names[static_cast<std::size_t>(i)] =
-          cfg.model.chain.joints()[static_cast<std::size_t>(i)].name;
     auto s = std::make_unique<CountingSink>();
     sink = s.get();
-    acq = std::make_unique<core::Acquisition>(
-        ac, core::make_pipeline_config(cfg),
-        drivers::make_source(cfg.source, config::make_source_context(cfg)), std::move(s), "BENCH_",
-        nullptr);
+    core::AcquisitionOptions wiring;
+    wiring.sink = std::move(s);
+    wiring.channel_prefix = "BENCH_";
+    wiring.realtime = false;
+    acq = core::build_acquisition(cfg, std::move(wiring));
     acq->prepare_for_manual_cycles();
     t0 = mono_now_ns();
   }
