@@ -36,7 +36,6 @@ namespace exodaq::daemon {
 using namespace core;  // NOLINT(google-build-using-namespace): the daemon wires the core
 using config::load_service_config;
 using config::LoggingSettings;
-using config::make_source_context;
 using config::ServiceConfig;
 using config::to_yaml;
 

@@ -219,7 +219,7 @@ ReplayRun drive_cycles(core::Acquisition& acq, const drivers::ReplaySource& repl
 void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
                   const drivers::ReplaySource& replay, const std::string& prefix,
                   const LcmLogSink& sink, const ReplayRun& run, double load_s) {
-  const drivers::ReplayLoadSummary summary = replay.summary();
+  const drivers::ReplayLoadSummary& summary = replay.summary();
   const auto ll = [](std::int64_t v) { return static_cast<long long>(v); };
   const char* fmt = summary.format == drivers::ReplayFormat::kLcm ? "lcm" : "candump";
   std::printf("exodaq replay: %s (%s", o.input.c_str(), fmt);
