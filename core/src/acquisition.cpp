@@ -3,7 +3,6 @@
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
-#include <time.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -120,15 +119,6 @@ void Acquisition::stop() {
     publisher_.stop();
     if (clock_monitor_) clock_monitor_->stop();
     source_->stop();
-  }
-}
-
-void Acquisition::wait_until_finished() {
-  while (!finished_.load(std::memory_order_acquire) && !stop_requested_.load()) {
-    struct timespec ts {
-      0, 2'000'000
-    };
-    nanosleep(&ts, nullptr);
   }
 }
 

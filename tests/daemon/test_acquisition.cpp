@@ -344,7 +344,7 @@ TEST(Acquisition, ThreadedLoopPlaysARecordingToItsEnd) {
     auto acq = make_acquisition(std::make_unique<RecordedSource>(600, speed), sink);
     sink->keep = true;
     acq->start();
-    acq->wait_until_finished();
+    while (!acq->finished()) std::this_thread::sleep_for(std::chrono::milliseconds(2));
     acq->stop();
     EXPECT_TRUE(acq->finished());
     EXPECT_EQ(acq->cycles(), 600);

@@ -61,8 +61,6 @@ class Acquisition {
   // Stops the loop after its current cycle, publishes a final status with
   // state `stopping`, drains the publisher. Idempotent.
   void stop();
-  // Blocks until the source ends (or stop()).
-  void wait_until_finished();
 
   // Main thread, at any time: the loop switches to `config` and `clock` at its
   // next cycle boundary. The previous configuration is freed off the loop thread.

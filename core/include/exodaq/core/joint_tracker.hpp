@@ -106,8 +106,6 @@ class JointTracker {
   const JointReading& reading() const noexcept { return reading_; }
   const JointCounters& counters() const noexcept { return counters_; }
   const JointTrackerConfig& config() const noexcept { return config_; }
-  // Radians per encoder count at the joint.
-  double rad_per_count() const noexcept { return rad_per_count_; }
 
  private:
   void take_count(std::int64_t t_ns, std::uint16_t count16, JointEvent& event) noexcept;
