@@ -56,6 +56,8 @@ sim::SimFault parse_sim_fault(config::MapReader& f) {
   fault.start_s = f.number("at_s");
   if (fault.start_s < 0) f.fail_key("at_s", "at_s must be >= 0");
   fault.duration_s = f.number_or("for_s", 0.0);
+  if (fault.kind == sim::SimFault::Kind::kStall && !(fault.duration_s > 0))
+    f.fail_key("for_s", "a stall needs for_s > 0 (seconds the host stalls)");
   const std::int64_t joint = f.integer_or("joint", 1);
   if (joint < 1 || joint > sim::kJoints) f.fail_key("joint", "joint must be 1..6");
   fault.joint = static_cast<int>(joint - 1);

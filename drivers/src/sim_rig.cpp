@@ -547,6 +547,7 @@ std::span<const SimFaultName> sim_fault_names() noexcept {
       {K::kStuck, "stuck"},        {K::kSilence, "silence"},       {K::kDrop, "drop"},
       {K::kPartial, "partial"},    {K::kDuplicate, "duplicate"},   {K::kBoardError, "board_error"},
       {K::kReorder, "reorder"},    {K::kBadSeq, "bad_seq"},        {K::kWrongDlc, "wrong_dlc"},
+      {K::kStall, "stall"},
   };
   return kNames;
 }

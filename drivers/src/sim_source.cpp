@@ -2,6 +2,10 @@
 
 #include <time.h>
 
+#include <cerrno>
+#include <cmath>
+#include <stdexcept>
+
 namespace exodaq::drivers {
 namespace {
 
@@ -17,15 +21,29 @@ BoardDecoderConfig decoder_config(const SimOptions& o) {
   return c;
 }
 
+void sleep_for_s(double seconds) noexcept {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(seconds);
+  ts.tv_nsec = static_cast<long>((seconds - std::floor(seconds)) * 1e9);
+  while (nanosleep(&ts, &ts) != 0 && errno == EINTR) {
+  }
+}
+
 }  // namespace
 
 SimSource::SimSource(const SimOptions& options)
-    : options_(options), rig_(options), decoder_(decoder_config(options)) {}
+    : options_(options), rig_(options), decoder_(decoder_config(options)) {
+  for (const sim::SimFault& f : options_.faults) {
+    if (f.kind == sim::SimFault::Kind::kStall && !(f.duration_s > 0.0))
+      throw std::invalid_argument("sim: a stall fault needs a duration (for_s > 0)");
+  }
+}
 
 void SimSource::start() {
   rig_ = sim::SimRig(options_);  // rewind the encoders to power-up
   decoder_.reset();
   cycle_ = 0;
+  last_read_s_ = -1.0;
   const std::int64_t mono = now_ns(CLOCK_MONOTONIC);
   start_mono_ns_ = options_.start_mono_ns != 0 ? options_.start_mono_ns : mono;
   wall_offset_ns_ =
@@ -44,12 +62,21 @@ ReadStatus SimSource::read(const CycleTime& time, EncoderSample& out) noexcept {
     start_mono_ns_ = time.deadline_mono_ns - k * options_.period_ns;
   }
   cycle_ = k + 1;
+  stall_if_due(rig_.sample_time_s(k));
   const int n = rig_.step(k, frames_, start_mono_ns_, wall_offset_ns_);
   for (int i = 0; i < n; ++i) decoder_.on_frame(frames_[static_cast<std::size_t>(i)]);
   if (decoder_.poll_sample(out) || decoder_.flush(out)) return ReadStatus::kSample;
   const std::int64_t mono = start_mono_ns_ + rig_.sample_offset_ns(k);
   decoder_.make_missing(out, mono, mono + wall_offset_ns_);
   return ReadStatus::kNoSample;
+}
+
+void SimSource::stall_if_due(double t_s) noexcept {
+  for (const sim::SimFault& f : options_.faults) {
+    if (f.kind == sim::SimFault::Kind::kStall && last_read_s_ < f.start_s && t_s >= f.start_s)
+      sleep_for_s(f.duration_s);
+  }
+  last_read_s_ = t_s;
 }
 
 }  // namespace exodaq::drivers

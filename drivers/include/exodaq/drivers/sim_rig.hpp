@@ -269,6 +269,8 @@ struct SimFault {
                    // and sent after the next cycle's (reaching the bus out of order)
     kBadSeq,       // COUNTS_A/B carry seq + 128 (a corrupted sequence byte)
     kWrongDlc,     // COUNTS_B is sent with DLC 6 instead of 8 (a malformed frame)
+    kStall,        // the simulated host stalls: SimSource::read() reaching start_s blocks for
+                   // duration_s of real time, once (a loaded host holding the loop off)
   };
   Kind kind = Kind::kCountOffset;
   double start_s = 0.0;

@@ -29,6 +29,8 @@
 //
 // The sim paces nothing: read() simulates board cycle max(time.cycle, next),
 // so it stays locked to the loop's cycle numbers across skipped deadlines.
+// A scripted `stall` fault makes the read that reaches its start block for its
+// duration (real time), as a host held off would.
 #include <cstdint>
 #include <string_view>
 
@@ -42,13 +44,13 @@ using sim::SimOptions;
 
 class SimSource final : public EncoderSource {
  public:
-  // Throws std::invalid_argument on inconsistent options.
+  // Throws std::invalid_argument on inconsistent options (also a stall without a duration).
   explicit SimSource(const SimOptions& options = {});
 
   std::string_view name() const noexcept override { return "sim"; }
   // Fixes the time base and rewinds to cycle 0.
   void start() override;
-  // Allocation-free, non-blocking.
+  // Allocation-free; blocks only in a scripted `stall` fault.
   ReadStatus read(const CycleTime& time, EncoderSample& out) noexcept override;
   SourceStats stats() const noexcept override { return decoder_.stats(); }
 
@@ -64,6 +66,9 @@ class SimSource final : public EncoderSource {
   }
 
  private:
+  // A scripted stall whose start lies in (previous read, t_s]: sleeps its duration.
+  void stall_if_due(double t_s) noexcept;
+
   SimOptions options_;
   sim::SimRig rig_;
   BoardDecoder decoder_;
@@ -71,6 +76,7 @@ class SimSource final : public EncoderSource {
   std::int64_t start_mono_ns_ = 0;
   std::int64_t wall_offset_ns_ = 0;
   std::int64_t cycle_ = 0;
+  double last_read_s_ = -1.0;  // simulated time of the previous read (stall faults)
 };
 
 }  // namespace exodaq::drivers
