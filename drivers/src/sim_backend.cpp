@@ -27,6 +27,14 @@ std::shared_ptr<const BackendSettings> parse_sim(config::MapReader* s, config::M
   if (pc < 0 || pc > 0xFFFF)
     s->fail_key("powerup_count", "source.sim.powerup_count must be 0..65535");
   out->powerup_count = static_cast<std::uint16_t>(pc);
+  if (s->has("task")) {
+    out->task_path = s->path("task");
+    out->task = std::make_shared<const sim::SimTaskFile>(sim::load_sim_task(out->task_path));
+  }
+  out->motion = s->choice_or("motion", {"curves", "task"}, out->task ? "task" : "curves");
+  if (out->motion == "task" && !out->task) {
+    s->fail_key("motion", "motion: task needs a task file (source.sim.task)");
+  }
   if (auto faults = s->optional_child("faults")) {
     if (!faults->IsSequence()) s->fail(*faults, "source.sim.faults must be a list");
     for (std::size_t i = 0; i < faults->size(); ++i) {
@@ -102,7 +110,8 @@ sim::SimFault parse_sim_fault(config::MapReader& f) {
 std::string SimSourceSettings::describe() const {
   std::ostringstream s;
   s << "{seed: " << seed << ", loss_percent: " << loss_percent << ", jitter_us: " << jitter_us
-    << ", powerup_count: " << powerup_count;
+    << ", powerup_count: " << powerup_count << ", motion: " << motion;
+  if (!task_path.empty()) s << ", task: " << task_path;
   if (!faults.empty()) {
     s << ", faults: [";
     for (std::size_t i = 0; i < faults.size(); ++i) {
@@ -151,6 +160,16 @@ sim::SimOptions sim_options_from(const SimSourceSettings& settings, const Source
     o.motion.home_rad[j] = c.home_rad;
     o.motion.lower_limit_rad[j] = c.lower_rad;
     o.motion.upper_limit_rad[j] = c.upper_rad;
+  }
+  if (settings.motion == "task" && settings.task) {
+    auto task = std::make_shared<sim::SimTask>();
+    task->file = settings.task;
+    task->chain = ctx.chain;
+    task->rig = ctx.rig;
+    for (std::size_t j = 0; j < ctx.joints.size(); ++j) {
+      task->max_speed_rad_s[j] = ctx.joints[j].max_speed_rad_s;
+    }
+    o.motion.task = std::move(task);
   }
   return o;
 }

@@ -1,5 +1,7 @@
 #include "exodaq/drivers/sim_rig.hpp"
 
+#include "exodaq/drivers/sim_task.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -194,12 +196,24 @@ SimMotion::SimMotion(const SimMotionOptions& o, const Vec6& index_angle_rad,
   SegmentBuilder b(o, homing_, 0.0);
   homing_index_ = build_homing(o, index_angle_rad, index_period_rad, b);
   homing_end_s_ = b.time();
+  if (o.task) {  // homing, the lead-in to the task's first stop, then its loop
+    plan_ = std::make_shared<const SimTaskPlan>(plan_sim_task(*o.task, o, o.seed));
+    for (Segment s : plan_->lead_in) {
+      s.t0 += homing_end_s_;
+      homing_.push_back(s);
+    }
+    homing_end_s_ += plan_->lead_in.back().t0 + plan_->lead_in.back().duration;
+    trips_ = plan_->loop;
+    cycle_s_ = plan_->period_s;
+    return;
+  }
   b.restart(trips_);
   build_trips(o, b);
   cycle_s_ = b.time();
 }
 
-JointTruth SimMotion::eval(const Segment& s, double t) noexcept {
+JointTruth SimMotion::eval(const Segment& s, double t) const noexcept {
+  if (s.move >= 0) return sample_move(*plan_, s.move, t - s.t0);
   JointTruth out;
   double tau = (t - s.t0) / s.duration;
   tau = std::clamp(tau, 0.0, 1.0);

@@ -11,6 +11,7 @@
 // eq. 4 θ = Δθ⁰ + θᴿ) and seed 001 (Table III joint speed bounds).
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <numbers>
 #include <span>
 #include <string_view>
@@ -36,17 +37,14 @@ inline constexpr Vec6 kLowerLimitRad{deg(-50.5), deg(-228.3), deg(-98.1),
 inline constexpr Vec6 kUpperLimitRad{deg(140.5), deg(48.3), deg(98.1), deg(80), deg(8.1), deg(80)};
 // Seed 000, Table 5: range of motion measured in the reach-grasp-feed task.
 inline constexpr Vec6 kTaskRomRad{deg(30.9), deg(5.1), deg(75.3), deg(39.9), deg(84.7), deg(54.9)};
-// Plausible speed bound per joint. Joints 1-4: seed 001 Table III rows 1-4 in
-// order (0.64, 1.06, 1.80, 5.38 rad/s) as the design notes map them. Joints
-// 5-6 are not in that table; chosen here: joint 5 (elbow) 5.38 rad/s, the
-// elbow row of the same table; joint 6 (pronation/supination) 3.0 rad/s, the
-// whole 55 deg task ROM in ~0.3 s.
-inline constexpr Vec6 kSpeedBoundRadS{0.64, 1.06, 1.80, 5.38, 5.38, 3.0};
-// The speed the simulated motion may reach: 80 % of the smaller of the bound
-// above and the bound under the anatomical reading of Table III (its rows are
-// shoulder ab/adduction, flexion/extension, internal/external rotation and
-// elbow, i.e. this rig's joints 2, 3, 4, 5), so the simulated arm stays
-// plausible whichever mapping a consumer applies.
+// Speed bound per joint, seed 001 Table III read by anatomy: its rows are its
+// own arm's shoulder ab/adduction (0.64 rad/s), flexion/extension (1.06),
+// internal/external rotation (1.80) and elbow (5.38), i.e. this rig's joints
+// 2, 3, 4 and 5. Joint 1 (azimuthal ab/adduction, seed 000 Table 2) takes the
+// ab/adduction row; joint 6 (pronation/supination, not in the table) 3.0 rad/s,
+// its whole 55 deg task ROM in ~0.3 s. The configs' max_speed_rad_s hold them.
+inline constexpr Vec6 kSpeedBoundRadS{0.64, 0.64, 1.06, 1.80, 5.38, 3.0};
+// The speed the hand-made curves may reach: 80 % of the bound.
 inline constexpr Vec6 kMotionSpeedCapRadS{0.8 * 0.64, 0.8 * 0.64, 0.8 * 1.06,
                                           0.8 * 1.80, 0.8 * 5.38, 0.8 * 3.0};
 
@@ -58,6 +56,9 @@ inline constexpr Vec6 kDefaultIndexAngleRad{deg(45 + 4), deg(-90 - 3), deg(90 - 
 // ---------------------------------------------------------------------------
 // Motion
 // ---------------------------------------------------------------------------
+
+struct SimTask;      // sim_task.hpp
+struct SimTaskPlan;  // sim_task.hpp
 
 struct SimMotionOptions {
   std::uint64_t seed = 1;  // same seed → same trajectory
@@ -79,6 +80,9 @@ struct SimMotionOptions {
   double feed_hold_s = 0.5;
   double home_hold_s = 0.4;
   int round_trips = 16;  // distinct reach→grasp→feed→return trips; then they repeat
+  // A task to run after homing instead of the hand-made round trips (the
+  // fields above from task_lower_rad on are then unused). Null: the curves.
+  std::shared_ptr<const SimTask> task;
 };
 
 struct JointTruth {
@@ -96,7 +100,8 @@ class SimMotion {
     double t0 = 0.0;        // start time, s
     double duration = 0.0;  // s
     Vec6 from{};
-    Vec6 to{};  // equal to `from` for a hold
+    Vec6 to{};      // equal to `from` for a hold
+    int move = -1;  // >= 0: the task plan's joint trajectory `move`; else a quintic from -> to
   };
 
   // index_angle_rad: each joint's index angle; index_period_rad: 2π/gear, the
@@ -119,12 +124,14 @@ class SimMotion {
   const std::vector<Segment>& homing_segments() const noexcept { return homing_; }
   const std::vector<Segment>& trip_segments() const noexcept { return trips_; }  // t0 from 0
   const SimMotionOptions& options() const noexcept { return options_; }
+  const SimTaskPlan* task_plan() const noexcept { return plan_.get(); }  // null: curves
 
  private:
-  static JointTruth eval(const Segment& s, double t) noexcept;
+  JointTruth eval(const Segment& s, double t) const noexcept;
   static const Segment* find(const std::vector<Segment>& segs, double t) noexcept;
 
   SimMotionOptions options_;
+  std::shared_ptr<const SimTaskPlan> plan_;
   Vec6 homing_index_{};
   std::vector<Segment> homing_;  // absolute times
   std::vector<Segment> trips_;   // relative to homing_end_s_
