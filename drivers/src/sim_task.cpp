@@ -70,7 +70,6 @@ SimTaskStep read_step(MapReader& s, const std::map<std::string, Eigen::Matrix3d>
 
 SimTaskRandom read_random(MapReader& r, const std::vector<SimTaskStep>& loop) {
   SimTaskRandom out;
-  out.line = config::line_of(r.node());
   const YAML::Node steps = r.child("steps");
   if (!steps.IsSequence() || steps.size() == 0) r.fail(steps, "random.steps lists step names");
   for (const auto& n : steps) {
@@ -80,6 +79,7 @@ SimTaskRandom read_random(MapReader& r, const std::vector<SimTaskStep>& loop) {
     out.steps.push_back(static_cast<int>(it - loop.begin()));
   }
   MapReader box = r.map("box_mm");
+  out.line = config::line_of(box.node());
   out.box_min_m = millimetres(box, "min");
   out.box_max_m = millimetres(box, "max");
   box.finish();
@@ -245,10 +245,11 @@ std::vector<kin::Pose> trip_targets(const SimTaskFile& f, std::uint64_t seed, in
   return poses;
 }
 
-// One trip's stops; false when a target is out of reach (the error in `why`).
-bool plan_trip(const SimTask& task, const ArmGeometry& g, kin::IkSolver& ik,
-               const std::vector<kin::Pose>& targets, Vec6 seed, int trip,
-               std::vector<SimTaskPlan::Stop>& out, std::string& why, int& line) {
+// One trip's stops. Returns the index of the step out of reach (the reason
+// in `why`), or -1.
+int plan_trip(const SimTask& task, const ArmGeometry& g, kin::IkSolver& ik,
+              const std::vector<kin::Pose>& targets, Vec6 seed, int trip,
+              std::vector<SimTaskPlan::Stop>& out, std::string& why) {
   const SimTaskFile& f = *task.file;
   for (std::size_t i = 0; i < f.loop.size(); ++i) {
     SimTaskPlan::Stop stop;
@@ -256,24 +257,28 @@ bool plan_trip(const SimTask& task, const ArmGeometry& g, kin::IkSolver& ik,
     stop.step = static_cast<int>(i);
     stop.target = targets[i];
     stop.adjust_rad = make_reachable(g, stop.target);
-    line = f.loop[i].line;
     if (stop.adjust_rad < 0.0 || stop.adjust_rad > f.max_adjust_rad) {
       why = stop.adjust_rad < 0.0
                 ? "no palm orientation reaches its position (too near or too far)"
                 : "its orientation is " + std::to_string(stop.adjust_rad / kDegToRad) +
                       " deg from a reachable one (max_adjust_deg)";
-      return false;
+      return static_cast<int>(i);
     }
     const auto posture = solve_step(ik, f.loop[i], stop.target, seed);
     if (!posture) {
       why = "no posture within the joint limits reaches it";
-      return false;
+      return static_cast<int>(i);
     }
     stop.posture = *posture;
     seed = *posture;
     out.push_back(stop);
   }
-  return true;
+  return -1;
+}
+
+bool is_random(const SimTaskFile& f, int step) {
+  return f.random &&
+         std::find(f.random->steps.begin(), f.random->steps.end(), step) != f.random->steps.end();
 }
 
 std::vector<SimTaskPlan::Stop> plan_stops(const SimTask& task, const SimMotionOptions& o,
@@ -283,24 +288,27 @@ std::vector<SimTaskPlan::Stop> plan_stops(const SimTask& task, const SimMotionOp
   kin::IkSolver ik(task.chain, task.rig);
   std::vector<SimTaskPlan::Stop> stops;
   const int trips = f.random ? f.random->trips : 1;
-  const int attempts = f.random ? 100 : 1;
   for (int trip = 0; trip < trips; ++trip) {
     const Vec6 from = stops.empty() ? o.home_rad : stops.back().posture;
-    std::string why;
-    int line = 0;
-    bool ok = false;
-    for (int a = 0; a < attempts && !ok; ++a) {
+    // A drawn target out of reach is drawn again; a fixed one is an error.
+    for (int attempt = 0;; ++attempt) {
       std::vector<SimTaskPlan::Stop> trip_stops;
-      ok =
-          plan_trip(task, g, ik, trip_targets(f, seed, trip, a), from, trip, trip_stops, why, line);
-      if (ok) stops.insert(stops.end(), trip_stops.begin(), trip_stops.end());
+      std::string why;
+      const int bad =
+          plan_trip(task, g, ik, trip_targets(f, seed, trip, attempt), from, trip, trip_stops, why);
+      if (bad < 0) {
+        stops.insert(stops.end(), trip_stops.begin(), trip_stops.end());
+        break;
+      }
+      if (!is_random(f, bad)) {
+        throw ConfigError(f.file, f.loop[u(bad)].line, "target out of reach: " + why);
+      }
+      if (attempt == 99) {
+        throw ConfigError(f.file, f.random->line,
+                          "no reachable target in the random box for trip " +
+                              std::to_string(trip + 1) + " in 100 draws (last: " + why + ")");
+      }
     }
-    if (!ok && f.random) {
-      throw ConfigError(f.file, f.random->line,
-                        "no reachable targets in the random box for trip " +
-                            std::to_string(trip + 1) + " in 100 draws (last: " + why + ")");
-    }
-    if (!ok) throw ConfigError(f.file, line, "target out of reach: " + why);
   }
   return stops;
 }

@@ -53,11 +53,14 @@ config::ServiceConfig config_with_task(const std::string& task_yaml) {
   return cfg;
 }
 
-std::string default_task_text() {
+// The default task file, without its random block when `fixed`.
+std::string default_task_text(bool fixed) {
   std::ifstream in(kConfigDir + "tasks/reach_grasp_feed.yaml");
   std::stringstream s;
   s << in.rdbuf();
-  return s.str();
+  std::string text = s.str();
+  if (fixed) text = text.substr(0, text.find("\n# The mouth is not met"));
+  return text + "\n";
 }
 
 // Every 1 ms over [from, to): position range per joint, peak speed, limits.
@@ -93,18 +96,21 @@ TEST(SimTask, TheDefaultConfigRunsTheReachGraspFeedLoop) {
   const sim::SimRig rig(options_of(cfg));
   const sim::SimTaskPlan* plan = rig.motion().task_plan();
   ASSERT_NE(plan, nullptr);
-  ASSERT_EQ(plan->stops.size(), 4U);
+  // Six trials (the feed target drawn in a box each), four stops each.
+  ASSERT_TRUE(s->task->random);
+  ASSERT_EQ(plan->stops.size(), 24U);
   const char* names[] = {"table", "reach", "grasp", "feed"};
-  for (std::size_t i = 0; i < 4; ++i) {
-    EXPECT_EQ(s->task->loop[i].name, names[i]);
-    EXPECT_EQ(plan->stops[i].step, static_cast<int>(i));
+  for (std::size_t i = 0; i < 24; ++i) {
+    EXPECT_EQ(plan->stops[i].step, static_cast<int>(i % 4));
+    EXPECT_EQ(plan->stops[i].trip, static_cast<int>(i / 4));
+    EXPECT_EQ(s->task->loop[i % 4].name, names[i % 4]);
   }
   // Homing is the curves' (every joint homed by 11 s), then the lead-in.
   EXPECT_GT(rig.motion().homing_end_s(), 11.5);
   EXPECT_LT(rig.motion().homing_end_s(), 15.0);
   // A trial lasts about as long as seed 000's (25 trials in 7 min: 17 s).
-  EXPECT_GT(rig.motion().cycle_s(), 10.0);
-  EXPECT_LT(rig.motion().cycle_s(), 25.0);
+  EXPECT_GT(rig.motion().cycle_s(), 6 * 14.0);
+  EXPECT_LT(rig.motion().cycle_s(), 6 * 20.0);
   std::printf("homing + lead-in %.3f s, trial %.3f s\n", rig.motion().homing_end_s(),
               rig.motion().cycle_s());
 }
@@ -155,15 +161,20 @@ TEST(SimTask, EveryStopReachesItsPalmTarget) {
     const double dwell = step.dwell_s;
     const auto x = m.truth(m.homing_end_s() + stop.arrive_s + 0.5 * dwell);
     for (std::size_t j = 0; j < 6; ++j) EXPECT_NEAR(x.position[j], stop.posture[j], 1e-12);
-    // ...whose palm is at the file's target: the position exactly, the
-    // orientation turned by the small adjustment that made it reachable.
+    // ...whose palm is at the stop's target (the file's, or drawn in the
+    // random box): the position exactly, the orientation turned by the
+    // adjustment that made it reachable (small for the file's own targets).
     exodaq::kin::JointVector q(6);
     for (int j = 0; j < 6; ++j) q[j] = stop.posture[static_cast<std::size_t>(j)];
     const exodaq::kin::Pose palm = cfg.model.chain.palm(q);
-    EXPECT_LT((palm.translation() - step.position_m).norm(), 1e-7) << step.name;
+    EXPECT_LT((palm.translation() - stop.target.translation()).norm(), 1e-7) << step.name;
     const double turn = Eigen::AngleAxisd(palm.linear() * step.rotation.transpose()).angle();
-    EXPECT_LE(turn, stop.adjust_rad + 1e-7) << step.name;
-    EXPECT_LT(stop.adjust_rad, 0.1 * kDeg) << step.name;
+    EXPECT_NEAR(turn, stop.adjust_rad, 1e-7) << step.name;
+    const bool drawn = stop.step == 3;
+    if (!drawn) {
+      EXPECT_LT((palm.translation() - step.position_m).norm(), 1e-7) << step.name;
+    }
+    EXPECT_LT(stop.adjust_rad, (drawn ? 10.0 : 0.1) * kDeg) << step.name;
     // The file's azimuth is the posture's joint 1.
     EXPECT_NEAR(stop.posture[0], *step.azimuth_rad, 1e-9);
     std::printf("%-6s palm (%.1f, %.1f, %.1f) mm, adjusted %.4f deg, arrives %.3f s\n",
@@ -214,7 +225,7 @@ TEST(SimTask, TheStreamIsDeterministicForASeedAndSampledWithoutAllocating) {
 }
 
 TEST(SimTask, RandomTargetsAreDrawnInTheirBoxFromTheSeed) {
-  std::string text = default_task_text();
+  std::string text = default_task_text(true);
   text +=
       "random:\n  steps: [feed, table]\n"
       "  box_mm: {min: [-145, 166, -13], max: [-135, 176, -3]}\n  trips: 4\n";
@@ -254,7 +265,7 @@ TEST(SimTask, RandomTargetsAreDrawnInTheirBoxFromTheSeed) {
 }
 
 TEST(SimTask, BadTaskFilesAreFileLineErrors) {
-  const std::string base = default_task_text();
+  const std::string base = default_task_text(false);
   auto error_of = [](const std::string& text) -> std::string {
     try {
       const auto cfg = config_with_task(text);
@@ -280,6 +291,10 @@ TEST(SimTask, BadTaskFilesAreFileLineErrors) {
   EXPECT_EQ(error_of(replace("[-115.11, 256.23, -96.31]", "[-115.11, 356.23, -196.31]")),
             "25: target out of reach: no palm orientation reaches its position (too near or too "
             "far)");
+  EXPECT_EQ(error_of(replace("{min: [-145.7, 164.7, -14.1], max: [-133.7, 176.7, -2.1]}",
+                             "{min: [0, 0, 300], max: [10, 10, 310]}")),
+            "33: no reachable target in the random box for trip 1 in 100 draws (last: no palm "
+            "orientation reaches its position (too near or too far))");
   // Azimuth 150 deg, beyond joint 1's 140.5 deg limit.
   EXPECT_EQ(error_of(replace("azimuth_deg: 26", "azimuth_deg: 150")),
             "25: target out of reach: no posture within the joint limits reaches it");

@@ -36,7 +36,7 @@ struct SimTaskRandom {
   Eigen::Vector3d box_min_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d box_max_m = Eigen::Vector3d::Zero();
   int trips = 1;  // distinct trips, then they repeat
-  int line = 0;
+  int line = 0;   // of box_mm, for errors
 };
 
 struct SimTaskFile {
