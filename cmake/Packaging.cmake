@@ -4,7 +4,7 @@
 #   /usr/bin/exodaqd, exodaq, exodaq-board-sim, lcm-spy-exodaq   (their own directories' rules)
 #   /usr/share/exodaq/lcmtypes/                                  (lcmtypes/: .lcm, jar)
 #   /usr/lib/python3/dist-packages/exodaq/, exodaq_lcm.py         (tools/python: the Python package)
-#   /etc/exodaq/exodaqd.yaml, sim.yaml, vcan.yaml, models/, calibration/   (conffiles)
+#   /etc/exodaq/exodaqd.yaml, sim.yaml, vcan.yaml, models/, calibration/, tasks/   (conffiles)
 #   /lib/systemd/system/exodaqd.service
 #   /usr/lib/sysusers.d/exodaq.conf
 #   /usr/share/doc/exodaq/  operations.md, messages.md, ..., examples/80-can0.{network,link}
@@ -24,10 +24,12 @@ file(GLOB EXODAQ_INSTALL_CONFIGS CONFIGURE_DEPENDS
 file(GLOB EXODAQ_INSTALL_MODELS CONFIGURE_DEPENDS ${EXODAQ_SOURCE_CONFIG_DIR}/models/*.yaml)
 file(GLOB EXODAQ_INSTALL_CALIBRATIONS CONFIGURE_DEPENDS
   ${EXODAQ_SOURCE_CONFIG_DIR}/calibration/*.yaml)
+file(GLOB EXODAQ_INSTALL_TASKS CONFIGURE_DEPENDS ${EXODAQ_SOURCE_CONFIG_DIR}/tasks/*.yaml)
 file(GLOB EXODAQ_INSTALL_DOCS CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/docs/*.md)
 list(SORT EXODAQ_INSTALL_CONFIGS)
 list(SORT EXODAQ_INSTALL_MODELS)
 list(SORT EXODAQ_INSTALL_CALIBRATIONS)
+list(SORT EXODAQ_INSTALL_TASKS)
 set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS
   ${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaqd.service ${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaq.sysusers)
 
@@ -37,6 +39,7 @@ set(_exodaq_bindir \"${CMAKE_INSTALL_BINDIR}\")
 set(_exodaq_configs \"${EXODAQ_INSTALL_CONFIGS}\")
 set(_exodaq_models \"${EXODAQ_INSTALL_MODELS}\")
 set(_exodaq_calibrations \"${EXODAQ_INSTALL_CALIBRATIONS}\")
+set(_exodaq_tasks \"${EXODAQ_INSTALL_TASKS}\")
 set(_exodaq_unit_in \"${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaqd.service\")
 set(_exodaq_sysusers \"${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaq.sysusers\")
 set(_exodaq_gen \"${CMAKE_BINARY_DIR}/install-gen\")
@@ -70,6 +73,7 @@ file(INSTALL DESTINATION "${_exodaq_etc}" TYPE FILE ${_exodaq_mode} FILES ${_exo
 file(INSTALL DESTINATION "${_exodaq_etc}/models" TYPE FILE ${_exodaq_mode} FILES ${_exodaq_models})
 file(INSTALL DESTINATION "${_exodaq_etc}/calibration" TYPE FILE ${_exodaq_mode}
   FILES ${_exodaq_calibrations})
+file(INSTALL DESTINATION "${_exodaq_etc}/tasks" TYPE FILE ${_exodaq_mode} FILES ${_exodaq_tasks})
 ]==])
 
 install(FILES ${EXODAQ_INSTALL_DOCS} DESTINATION ${CMAKE_INSTALL_DOCDIR})
@@ -124,6 +128,10 @@ endforeach()
 foreach(f ${EXODAQ_INSTALL_CALIBRATIONS})
   get_filename_component(n ${f} NAME)
   string(APPEND _exodaq_conffiles "/etc/exodaq/calibration/${n}\n")
+endforeach()
+foreach(f ${EXODAQ_INSTALL_TASKS})
+  get_filename_component(n ${f} NAME)
+  string(APPEND _exodaq_conffiles "/etc/exodaq/tasks/${n}\n")
 endforeach()
 file(WRITE ${_exodaq_deb}/conffiles "${_exodaq_conffiles}")
 

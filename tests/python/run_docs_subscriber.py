@@ -104,6 +104,7 @@ def write_config(args, tmp, url, prefix):
     text = open(os.path.join(src, "config", "sim.yaml")).read()
     text = text.replace("model: models/", "model: %s/config/models/" % src)
     text = text.replace("calibration: calibration/", "calibration: %s/config/calibration/" % src)
+    text = text.replace("task: tasks/", "task: %s/config/tasks/" % src)
     text = text.replace('prefix: ""', 'prefix: "%s"' % prefix)
     text = re.sub(r'url: "[^"]*"', 'url: "%s"' % url, text)
     if os.geteuid() != 0:

@@ -123,6 +123,7 @@ std::string write_config(const std::string& dir, const std::string& source_overr
   std::string text = exodaq::test::read_file(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
   const std::string cfg = std::string(EXODAQ_SOURCE_DIR) + "/config/";
   text = std::regex_replace(text, std::regex("model: models/"), "model: " + cfg + "models/");
+  text = std::regex_replace(text, std::regex("task: tasks/"), "task: " + cfg + "tasks/");
   text = std::regex_replace(text, std::regex("calibration: calibration/"),
                             "calibration: " + cfg + "calibration/");
   text = std::regex_replace(text, std::regex("prefix: \"\""),
