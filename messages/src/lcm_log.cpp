@@ -89,7 +89,8 @@ LogReader::~LogReader() {
 
 // Makes bytes [at, at + bytes) of the file available in the window, reading
 // whole chunks. False when they are not all in the file (past the size it
-// had when opened, or it has shrunk since). Throws LogError on a read error.
+// had when opened, or it has shrunk since: then the new end is the end).
+// Throws LogError on a read error.
 bool LogReader::fill(std::int64_t at, std::size_t bytes) {
   const std::int64_t window_end = window_at_ + static_cast<std::int64_t>(window_bytes_);
   if (at >= window_at_ && at + static_cast<std::int64_t>(bytes) <= window_end) return true;
@@ -114,7 +115,10 @@ bool LogReader::fill(std::int64_t at, std::size_t bytes) {
     const ssize_t n = ::pread(fd_, buffer_.data() + window_bytes_, want, from);
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) throw LogError(path_, from, "read error: " + errno_text(errno));
-    if (n == 0) return false;
+    if (n == 0) {
+      size_ = from;  // the file has shrunk since it was opened: it ends here now
+      return false;
+    }
     window_bytes_ += static_cast<std::size_t>(n);
   }
   return true;

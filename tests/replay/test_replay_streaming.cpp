@@ -4,13 +4,17 @@
 // generated inputs), whatever the read-ahead buffer's size, after a rewind,
 // and with the memory bounded whatever the recording's length.
 #include <gtest/gtest.h>
+#include <malloc.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
+#include "alloc_counter.hpp"
 #include "exodaq/drivers/replay_source.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
 #include "exodaq/encoder_raw_t.hpp"
@@ -258,12 +262,24 @@ std::string write_candump_session(const std::string& dir, int cycles) {
   return path;
 }
 
-ReplaySource make(const std::string& path) {
+// How the source reads ahead: the ring's size, and the pacing (which sets how
+// much read() waits for when the ring runs dry: one sample paced, half a ring
+// flat out).
+struct ReadAhead {
+  std::size_t capacity;
+  double speed;
+};
+constexpr ReadAhead kDefault{ReplaySource::kBufferSamples, 1.0};
+constexpr ReadAhead kReadAheads[] = {
+    kDefault, {ReplaySource::kBufferSamples, 0.0}, {64, 1.0}, {4, 0.0}, {2, 1.0}};
+
+ReplaySource make(const std::string& path, ReadAhead read_ahead = kDefault) {
   ReplaySettings s;
   s.path = path;
+  s.speed = read_ahead.speed;
   SourceContext ctx;
   for (std::size_t j = 0; j < 6; ++j) ctx.joints[j].channel = static_cast<int>(5 - j);
-  return ReplaySource(s, ctx);
+  return ReplaySource(s, ctx, read_ahead.capacity);
 }
 
 struct Golden {
@@ -274,22 +290,43 @@ struct Golden {
 };
 
 void expect_golden(const std::string& path, const Golden& g) {
-  ReplaySource src = make(path);
-  src.start();
-  EXPECT_EQ(src.sample_count(), g.samples);
-  EXPECT_EQ(src.issues().size(), g.issues);
-  std::int64_t n = 0;
-  const std::uint64_t digest = samples_digest(src, &n);
-  EXPECT_EQ(n, g.samples);
-  EXPECT_EQ(summary_digest(src, path), g.summary);
-  EXPECT_EQ(digest, g.samples_digest);
-  // A rewind in the middle replays the same from the start.
-  src.start();
-  (void)samples_digest(src, nullptr, g.samples / 3);
-  src.start();
-  EXPECT_EQ(src.position(), 0);
-  EXPECT_EQ(samples_digest(src), g.samples_digest);
-  EXPECT_EQ(summary_digest(src, path), g.summary);
+  for (const ReadAhead& read_ahead : kReadAheads) {
+    SCOPED_TRACE("ring of " + std::to_string(read_ahead.capacity) + ", speed " +
+                 std::to_string(read_ahead.speed));
+    ReplaySource src = make(path, read_ahead);
+    src.start();
+    EXPECT_EQ(src.buffer_capacity(), read_ahead.capacity);
+    EXPECT_EQ(src.sample_count(), g.samples);
+    EXPECT_EQ(src.issues().size(), g.issues);
+    EXPECT_EQ(summary_digest(src, path), g.summary);
+    // The loop's side allocates nothing, across every turn of the ring.
+    std::int64_t n = 0;
+    std::uint64_t digest = 0;
+    std::uint64_t allocations = 0;
+    {
+      const test::AllocationScope scope;
+      digest = samples_digest(src, &n);
+      allocations = scope.count();
+    }
+    EXPECT_EQ(allocations, 0U);
+    EXPECT_EQ(n, g.samples);
+    EXPECT_EQ(digest, g.samples_digest);
+    // A rewind in the middle replays the same from the start, and starts
+    // with the ring full: the first ring's worth of reads never waits.
+    src.start();
+    (void)samples_digest(src, nullptr, g.samples / 3);
+    src.start();
+    EXPECT_EQ(src.position(), 0);
+    const std::int64_t waits = src.buffer_waits();
+    const std::uint64_t head =
+        samples_digest(src, nullptr, static_cast<std::int64_t>(read_ahead.capacity));
+    EXPECT_EQ(src.buffer_waits(), waits);
+    src.start();
+    EXPECT_EQ(samples_digest(src, nullptr, static_cast<std::int64_t>(read_ahead.capacity)), head);
+    src.start();
+    EXPECT_EQ(samples_digest(src), g.samples_digest);
+    EXPECT_EQ(summary_digest(src, path), g.summary);
+  }
 }
 
 TEST(ReplayStreaming, LcmSessionWithJointStateSameAsWholeFileLoad) {
@@ -308,6 +345,87 @@ TEST(ReplayStreaming, CandumpSessionSameAsWholeFileLoad) {
   const std::string dir = test::make_temp_dir("replay-stream");
   expect_golden(write_candump_session(dir, 12000),
                 {11997, 17, 0xf43cffe55b968dddULL, 0x2f1cc9e1e2b247f5ULL});
+}
+
+// A long session as the daemon publishes it, written fast: the raw channel
+// only, 138 bytes an event.
+std::string write_long_lcm(const std::string& dir, std::int64_t cycles) {
+  const std::string path = dir + "/long.lcm";
+  msg::LogWriter log(path);
+  encoder_raw_t r{};
+  r.run_id = 0x5eed;
+  r.present = true;
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(r.getEncodedSize()));
+  for (std::int64_t k = 0; k < cycles; ++k) {
+    r.utime = 1'700'000'000'000'000 + k * 1000;
+    r.mono_ns = 1'000'000'000 + k * 1'000'000;
+    r.seq = k;
+    r.board_seq = static_cast<std::int16_t>(k & 0xFF);
+    for (int c = 0; c < 6; ++c) r.count16[c] = static_cast<std::int16_t>(k * (c + 1));
+    r.encode(buf.data(), 0, static_cast<int>(buf.size()));
+    log.write("EXO_ENCODER_RAW", r.utime, buf.data(), buf.size());
+  }
+  log.close();
+  return path;
+}
+
+// kB of a /proc/self/status line ("VmRSS:", "VmHWM:").
+std::int64_t status_kib(const std::string& key) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(key, 0) == 0) return std::stoll(line.substr(key.size()));
+  }
+  return -1;
+}
+
+TEST(ReplayStreaming, MemoryDoesNotGrowWithTheRecording) {
+  // 300 000 cycles (5 minutes at 1 kHz, 41 MB): loaded whole, the samples
+  // alone took 80 bytes each, 24 MB. Streamed: the ring (640 KiB), the
+  // reader's buffer and thread, whatever the length.
+  constexpr std::int64_t kCycles = 300'000;
+  const std::string dir = test::make_temp_dir("replay-stream");
+  const std::string path = write_long_lcm(dir, kCycles);
+  malloc_trim(0);  // what earlier tests freed leaves the RSS: the growth then shows
+  {
+    std::ofstream reset("/proc/self/clear_refs");
+    reset << "5";  // the peak RSS (VmHWM) restarts from the current RSS
+    reset.close();
+    if (!reset) GTEST_SKIP() << "cannot reset the peak RSS (/proc/self/clear_refs)";
+  }
+  const std::int64_t rss_before = status_kib("VmRSS:");
+  ASSERT_GT(rss_before, 0);
+  std::int64_t n = 0;
+  {
+    ReplaySource src = make(path, {ReplaySource::kBufferSamples, 0.0});
+    src.start();
+    EncoderSample s;
+    while (src.read(CycleTime{}, s) != ReadStatus::kEndOfStream) ++n;
+  }
+  const std::int64_t growth_kib = status_kib("VmHWM:") - rss_before;
+  EXPECT_EQ(n, kCycles);
+  EXPECT_LT(growth_kib, 8 * 1024) << "peak RSS grew by " << growth_kib << " KiB";
+  std::printf("peak RSS grew by %lld KiB over %lld cycles\n", static_cast<long long>(growth_kib),
+              static_cast<long long>(kCycles));
+}
+
+TEST(ReplayStreaming, AFileCutDuringTheReplayEndsItWithAnIssue) {
+  constexpr std::int64_t kCycles = 20'000;
+  constexpr std::int64_t kEventBytes = 28 + 15 + 95;  // header, channel, encoder_raw_t
+  const std::string dir = test::make_temp_dir("replay-stream");
+  const std::string path = write_long_lcm(dir, kCycles);
+  ASSERT_EQ(test::file_size(path), kCycles * kEventBytes);
+  ReplaySource src = make(path, {16, 1.0});
+  src.start();  // counted; the reader holds 16 samples and one 256 KiB chunk
+  ASSERT_EQ(src.sample_count(), kCycles);
+  ASSERT_EQ(truncate(path.c_str(), kCycles / 2 * kEventBytes + 50), 0);
+  EncoderSample s;
+  std::int64_t n = 0;
+  while (src.read(CycleTime{}, s) != ReadStatus::kEndOfStream) ++n;
+  EXPECT_EQ(n, kCycles / 2);
+  ASSERT_FALSE(src.issues().empty());
+  EXPECT_EQ(src.issues().back().what,
+            "'" + path + "' changed during the replay: 10000 of its 20000 samples were read");
 }
 
 }  // namespace
