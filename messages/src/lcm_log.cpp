@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -21,23 +22,41 @@ constexpr std::uint32_t kMaxDataBytes = 64U << 20;  // larger than any LCM datag
 // about four times as much per byte on ext4), small enough to stay in cache.
 constexpr std::size_t kChunkBytes = 256 * 1024;
 
+// Big-endian fields, the event header's byte order: one load or store each.
+template <typename T>
+T from_big_endian(const unsigned char* p) noexcept {
+  T v;
+  std::memcpy(&v, p, sizeof v);
+  if constexpr (std::endian::native == std::endian::little) {
+    if constexpr (sizeof(T) == 4) v = __builtin_bswap32(v);
+    if constexpr (sizeof(T) == 8) v = __builtin_bswap64(v);
+  }
+  return v;
+}
+
+template <typename T>
+void to_big_endian(unsigned char* p, T v) noexcept {
+  if constexpr (std::endian::native == std::endian::little) {
+    if constexpr (sizeof(T) == 4) v = __builtin_bswap32(v);
+    if constexpr (sizeof(T) == 8) v = __builtin_bswap64(v);
+  }
+  std::memcpy(p, &v, sizeof v);
+}
+
 std::uint32_t be32(const unsigned char* p) noexcept {
-  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) |
-         std::uint32_t{p[3]};
+  return from_big_endian<std::uint32_t>(p);
 }
 
 std::int64_t be64(const unsigned char* p) noexcept {
-  return static_cast<std::int64_t>((std::uint64_t{be32(p)} << 32) | be32(p + 4));
+  return static_cast<std::int64_t>(from_big_endian<std::uint64_t>(p));
 }
 
 void put32(unsigned char* p, std::uint32_t v) noexcept {
-  for (int i = 0; i < 4; ++i) p[i] = static_cast<unsigned char>(v >> (24 - 8 * i));
+  to_big_endian(p, v);
 }
 
 void put64(unsigned char* p, std::int64_t v) noexcept {
-  const auto u = static_cast<std::uint64_t>(v);
-  put32(p, static_cast<std::uint32_t>(u >> 32));
-  put32(p + 4, static_cast<std::uint32_t>(u));
+  to_big_endian(p, static_cast<std::uint64_t>(v));
 }
 
 std::string hex_bytes(const unsigned char* p, std::size_t n) {

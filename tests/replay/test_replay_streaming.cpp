@@ -222,7 +222,7 @@ std::string write_lcm_session(const std::string& dir, const std::string& name, i
     }
     if (k == cycles / 2) damage_at = log.size();
   }
-  const std::string path = dir + "/" + name;
+  std::string path = dir + "/" + name;
   test::write_log(path, log);
   // Overwrite 300 bytes in the middle (a damaged stretch), cut the last event.
   std::size_t offset = 0;
@@ -257,7 +257,7 @@ std::string write_candump_session(const std::string& dir, int cycles) {
     if (line % 4001 == 0) text += "(1700000000.060000) vcan0 20000004#0004000000000000\n";
     if (line % 5003 == 0) text += "(1700000000.060001) vcan0 181#R\n";
   }
-  const std::string path = dir + "/sim.candump";
+  std::string path = dir + "/sim.candump";
   test::write_text(path, text);
   return path;
 }
@@ -350,7 +350,7 @@ TEST(ReplayStreaming, CandumpSessionSameAsWholeFileLoad) {
 // A long session as the daemon publishes it, written fast: the raw channel
 // only, 138 bytes an event.
 std::string write_long_lcm(const std::string& dir, std::int64_t cycles) {
-  const std::string path = dir + "/long.lcm";
+  std::string path = dir + "/long.lcm";
   msg::LogWriter log(path);
   encoder_raw_t r{};
   r.run_id = 0x5eed;
