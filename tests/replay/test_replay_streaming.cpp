@@ -428,5 +428,53 @@ TEST(ReplayStreaming, AFileCutDuringTheReplayEndsItWithAnIssue) {
             "'" + path + "' changed during the replay: 10000 of its 20000 samples were read");
 }
 
+TEST(ReplayStreaming, CandumpLinesTooLongAreReportedNotKept) {
+  // candump lines through the fixed read buffer: lines longer than 4096
+  // characters (one longer than the 256 KiB buffer) are reported and skipped,
+  // a 4096-character one is parsed; the run id still hashes every byte.
+  const std::string dir = test::make_temp_dir("replay-stream");
+  sim::SimOptions opt;
+  const test::SimCandump cd = test::sim_candump(opt, 300, kWallStart);
+  std::vector<std::string> lines;
+  for (std::size_t start = 0; start < cd.text.size();) {
+    const std::size_t end = cd.text.find('\n', start);
+    lines.push_back(cd.text.substr(start, end - start));
+    start = end + 1;
+  }
+  const std::string long5000(5000, 'x');
+  const std::string huge(300'000, 'y');
+  const std::string exact = "(1700000000.000000) vcan0 181#" + std::string(4096 - 30, '0');
+  ASSERT_EQ(exact.size(), 4096U);
+  lines.insert(lines.begin() + 9, long5000);  // line 10
+  lines.insert(lines.begin() + 49, huge);     // line 50
+  lines.insert(lines.begin() + 59, exact);    // line 60
+  lines.back() += "\r";                       // and no '\n' after the last line
+  std::string text;
+  for (const auto& l : lines) text += l + "\n";
+  text.pop_back();
+  const std::string path = dir + "/long.candump";
+  test::write_text(path, text);
+
+  ReplaySource src = make(path);
+  src.start();
+  ASSERT_EQ(src.issues().size(), 3U);
+  EXPECT_EQ(src.issues()[0].line, 10);
+  EXPECT_EQ(src.issues()[0].what,
+            "line longer than 4096 characters: \"" + std::string(77, 'x') + "...\"");
+  EXPECT_EQ(src.issues()[1].line, 50);
+  EXPECT_EQ(src.issues()[1].what,
+            "line longer than 4096 characters: \"" + std::string(77, 'y') + "...\"");
+  EXPECT_EQ(src.issues()[2].line, 60);
+  EXPECT_EQ(src.issues()[2].what.rfind("bad length", 0), 0U) << src.issues()[2].what;  // parsed
+  EXPECT_EQ(src.summary().bad_lines, 3);
+  EXPECT_EQ(src.summary().events, static_cast<std::int64_t>(lines.size()));
+  EXPECT_EQ(src.sample_count(), 300);
+  Digest d;
+  for (const char c : text) {
+    if (c != '\n') d.bytes(&c, 1);
+  }
+  EXPECT_EQ(src.run_id(), static_cast<std::int64_t>(d.h & 0x7FFF'FFFF'FFFF'FFFFULL));
+}
+
 }  // namespace
 }  // namespace exodaq::drivers
