@@ -17,17 +17,19 @@
 //            the CAN codec and assembled by the BoardDecoder, exactly as the
 //            SocketCAN backend does live. Cycles the board skipped (sequence
 //            gaps) are replayed as missing samples. Timestamps are the file's
-//            (wall clock); mono_ns = wall_ns. Malformed lines are kept in
-//            issues() with their line number, counted in stats().bad_frames,
-//            and the rest of the file is processed.
+//            (wall clock); mono_ns = wall_ns. Malformed lines (and lines over
+//            4096 characters) are kept in issues() with their line number,
+//            counted in stats().bad_frames, and the rest of the file is
+//            processed.
 //
 // The input is read as a stream, never held whole: start() reads it once to
 // count (summary(), issues() and the final stats() are complete before the
 // first cycle), then a reader thread reads it again, decoding ahead into a
-// ring of buffer_samples entries allocated in start(); read() takes one entry
-// and allocates nothing. Paced (speed > 0), read() finds the ring full and
-// waits only if the disk falls a whole ring behind; flat out, it waits for
-// the reader when the ring runs dry (docs/replay.md, "Memory and speed").
+// ring of buffer_samples entries (rounded up to a power of two) allocated in
+// start(); read() takes one entry and allocates nothing. Paced (speed > 0),
+// read() finds the ring full and waits only if the disk falls a whole ring
+// behind; flat out, it waits for the reader when the ring runs dry
+// (docs/replay.md, "Memory and speed").
 // next_sample_mono_ns() is the recorded instant of the next sample, so the
 // loop can be paced by the recording or run flat out. Same file in, same
 // samples out; the file must not change while it is replayed.
