@@ -2,8 +2,9 @@
 #
 # Layout, for CMAKE_INSTALL_PREFIX=/usr (the .deb, and `cmake --install build --prefix /usr`):
 #   /usr/bin/exodaqd, exodaq, exodaq-board-sim, lcm-spy-exodaq   (their own directories' rules)
-#   /usr/share/exodaq/lcmtypes/                                  (lcmtypes/: .lcm, jar, Python)
-#   /etc/exodaq/exodaqd.yaml, sim.yaml, vcan.yaml, models/, calibration/   (conffiles)
+#   /usr/share/exodaq/lcmtypes/                                  (lcmtypes/: .lcm, jar)
+#   /usr/lib/python3/dist-packages/exodaq/, exodaq_lcm.py         (tools/python: the Python package)
+#   /etc/exodaq/exodaqd.yaml, sim.yaml, vcan.yaml, models/, calibration/, tasks/   (conffiles)
 #   /lib/systemd/system/exodaqd.service
 #   /usr/lib/sysusers.d/exodaq.conf
 #   /usr/share/doc/exodaq/  operations.md, messages.md, ..., examples/80-can0.{network,link}
@@ -23,10 +24,12 @@ file(GLOB EXODAQ_INSTALL_CONFIGS CONFIGURE_DEPENDS
 file(GLOB EXODAQ_INSTALL_MODELS CONFIGURE_DEPENDS ${EXODAQ_SOURCE_CONFIG_DIR}/models/*.yaml)
 file(GLOB EXODAQ_INSTALL_CALIBRATIONS CONFIGURE_DEPENDS
   ${EXODAQ_SOURCE_CONFIG_DIR}/calibration/*.yaml)
+file(GLOB EXODAQ_INSTALL_TASKS CONFIGURE_DEPENDS ${EXODAQ_SOURCE_CONFIG_DIR}/tasks/*.yaml)
 file(GLOB EXODAQ_INSTALL_DOCS CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/docs/*.md)
 list(SORT EXODAQ_INSTALL_CONFIGS)
 list(SORT EXODAQ_INSTALL_MODELS)
 list(SORT EXODAQ_INSTALL_CALIBRATIONS)
+list(SORT EXODAQ_INSTALL_TASKS)
 set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS
   ${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaqd.service ${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaq.sysusers)
 
@@ -36,6 +39,7 @@ set(_exodaq_bindir \"${CMAKE_INSTALL_BINDIR}\")
 set(_exodaq_configs \"${EXODAQ_INSTALL_CONFIGS}\")
 set(_exodaq_models \"${EXODAQ_INSTALL_MODELS}\")
 set(_exodaq_calibrations \"${EXODAQ_INSTALL_CALIBRATIONS}\")
+set(_exodaq_tasks \"${EXODAQ_INSTALL_TASKS}\")
 set(_exodaq_unit_in \"${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaqd.service\")
 set(_exodaq_sysusers \"${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaq.sysusers\")
 set(_exodaq_gen \"${CMAKE_BINARY_DIR}/install-gen\")
@@ -69,6 +73,7 @@ file(INSTALL DESTINATION "${_exodaq_etc}" TYPE FILE ${_exodaq_mode} FILES ${_exo
 file(INSTALL DESTINATION "${_exodaq_etc}/models" TYPE FILE ${_exodaq_mode} FILES ${_exodaq_models})
 file(INSTALL DESTINATION "${_exodaq_etc}/calibration" TYPE FILE ${_exodaq_mode}
   FILES ${_exodaq_calibrations})
+file(INSTALL DESTINATION "${_exodaq_etc}/tasks" TYPE FILE ${_exodaq_mode} FILES ${_exodaq_tasks})
 ]==])
 
 install(FILES ${EXODAQ_INSTALL_DOCS} DESTINATION ${CMAKE_INSTALL_DOCDIR})
@@ -104,7 +109,9 @@ set(CPACK_STRIP_FILES ON)
 # systemd: systemd-sysusers in postinst and the unit; the rest is for clients and the rig.
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "systemd")
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "chrony | time-daemon, can-utils")
-set(CPACK_DEBIAN_PACKAGE_SUGGESTS "liblcm-java, default-jre-headless, python3, python3-lcm")
+# The Python package needs only python3's standard library (Debian 12 has no LCM
+# Python module; the package brings its own receiver).
+set(CPACK_DEBIAN_PACKAGE_SUGGESTS "liblcm-java, default-jre-headless, python3")
 
 # Maintainer scripts and conffiles, generated into the build tree.
 set(_exodaq_deb ${CMAKE_BINARY_DIR}/debian)
@@ -122,6 +129,10 @@ foreach(f ${EXODAQ_INSTALL_CALIBRATIONS})
   get_filename_component(n ${f} NAME)
   string(APPEND _exodaq_conffiles "/etc/exodaq/calibration/${n}\n")
 endforeach()
+foreach(f ${EXODAQ_INSTALL_TASKS})
+  get_filename_component(n ${f} NAME)
+  string(APPEND _exodaq_conffiles "/etc/exodaq/tasks/${n}\n")
+endforeach()
 file(WRITE ${_exodaq_deb}/conffiles "${_exodaq_conffiles}")
 
 # DPKG_ROOT: set by `dpkg --root=R --force-script-chrootless` (tests/packaging); the
@@ -135,6 +146,10 @@ if [ "$1" = "configure" ]; then
     elif ! getent passwd exodaq >/dev/null 2>&1 && [ -z "$DPKG_ROOT" ]; then
         adduser --system --group --no-create-home --home / \
             --gecos "exodaq acquisition service" exodaq
+    fi
+    # The Python package's byte code, as dh_python3 does (py3clean in prerm).
+    if [ -z "$DPKG_ROOT" ] && command -v py3compile >/dev/null 2>&1; then
+        py3compile -p exodaq
     fi
     if [ -z "$DPKG_ROOT" ] && [ -d /run/systemd/system ]; then
         systemctl daemon-reload || true
@@ -152,6 +167,9 @@ file(WRITE ${_exodaq_deb}/prerm [==[#!/bin/sh
 set -e
 if [ "$1" = "remove" ] && [ -z "$DPKG_ROOT" ] && [ -d /run/systemd/system ]; then
     systemctl stop exodaqd.service || true
+fi
+if [ -z "$DPKG_ROOT" ] && command -v py3clean >/dev/null 2>&1; then
+    py3clean -p exodaq
 fi
 exit 0
 ]==])

@@ -55,7 +55,7 @@ config::ServiceConfig sim_config() {
   return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
-// The daemon's wiring (daemon_runtime.cpp) with a counting sink instead of LCM.
+// The daemon's wiring (build_acquisition) with a counting sink instead of LCM.
 struct Rig {
   config::ServiceConfig cfg = sim_config();
   CountingSink* sink = nullptr;
@@ -65,23 +65,14 @@ struct Rig {
   std::int64_t k = 0;  // cycles run
 
   Rig() {
-    core::AcquisitionConfig ac;
-    ac.rig = cfg.rig;
     period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.rate_hz);
-    ac.period_ns = period_ns;
-    ac.status_every_cycles =
-        std::max(1, static_cast<int>(cfg.loop.rate_hz / cfg.loop.status_rate_hz + 0.5));
-    ac.publish_raw = cfg.lcm.publish_raw;
-    ac.clock = cfg.clock;
-    for (int i = 0; i < core::kJointCount; ++i)
-      ac.joint_names[static_cast<std::size_t>(i)] =
-          cfg.model.chain.joints()[static_cast<std::size_t>(i)].name;
     auto s = std::make_unique<CountingSink>();
     sink = s.get();
-    acq = std::make_unique<core::Acquisition>(
-        ac, core::make_pipeline_config(cfg),
-        drivers::make_source(cfg.source, config::make_source_context(cfg)), std::move(s), "BENCH_",
-        nullptr);
+    core::AcquisitionOptions wiring;
+    wiring.sink = std::move(s);
+    wiring.channel_prefix = "BENCH_";
+    wiring.realtime = false;
+    acq = core::build_acquisition(cfg, std::move(wiring));
     acq->prepare_for_manual_cycles();
     t0 = mono_now_ns();
   }
@@ -214,6 +205,56 @@ std::vector<std::int64_t> paced(std::int64_t n, bool publisher_thread) {
   return d;
 }
 
+// The sim source alone over the rig's cycles after its warm-up (what a real
+// rig replaces).
+std::vector<std::int64_t> time_source_reads(const Rig& rig, std::int64_t warmup,
+                                            std::int64_t cycles) {
+  std::vector<std::int64_t> source_read;
+  source_read.reserve(static_cast<std::size_t>(cycles));
+  auto src = drivers::make_source(rig.cfg.source, config::make_source_context(rig.cfg));
+  src->start();
+  drivers::EncoderSample sample;
+  drivers::CycleTime t;
+  t.period_ns = rig.period_ns;
+  for (std::int64_t i = 0; i < warmup + cycles; ++i) {
+    t.cycle = i;
+    t.deadline_mono_ns = rig.t0 + i * t.period_ns;
+    t.now_mono_ns = t.deadline_mono_ns + 5'000;
+    const std::int64_t a = mono_now_ns();
+    src->read(t, sample);
+    const std::int64_t d = mono_now_ns() - a;
+    if (i >= warmup) source_read.push_back(d);
+  }
+  return source_read;
+}
+
+// The cost of the timer itself.
+std::vector<std::int64_t> time_the_timer() {
+  std::vector<std::int64_t> timer;
+  timer.reserve(10'000);
+  for (int i = 0; i < 10'000; ++i) {
+    const std::int64_t a = mono_now_ns();
+    timer.push_back(mono_now_ns() - a);
+  }
+  return timer;
+}
+
+// To stdout for "" or "-".
+bool write_json(const std::string& j, const std::string& json_path) {
+  if (json_path.empty() || json_path == "-") {
+    std::fputs(j.c_str(), stdout);
+    return true;
+  }
+  FILE* f = std::fopen(json_path.c_str(), "w");
+  if (f == nullptr) {
+    std::perror(json_path.c_str());
+    return false;
+  }
+  std::fputs(j.c_str(), f);
+  std::fclose(f);
+  return true;
+}
+
 int harness(std::int64_t cycles, std::int64_t paced_cycles, const std::string& json_path) {
   Rig rig;
   rig.warm_up(15'000, 60'000);
@@ -246,32 +287,8 @@ int harness(std::int64_t cycles, std::int64_t paced_cycles, const std::string& j
   const std::uint64_t proc_allocs = test::process_allocations() - proc_before;
   const auto published = rig.acq->publisher().published() - published_before;
 
-  // The sim source alone over the same number of cycles (what a real rig replaces).
-  std::vector<std::int64_t> source_read;
-  source_read.reserve(static_cast<std::size_t>(cycles));
-  {
-    auto src = drivers::make_source(rig.cfg.source, config::make_source_context(rig.cfg));
-    src->start();
-    drivers::EncoderSample sample;
-    drivers::CycleTime t;
-    t.period_ns = rig.period_ns;
-    for (std::int64_t i = 0; i < warmup + cycles; ++i) {
-      t.cycle = i;
-      t.deadline_mono_ns = rig.t0 + i * t.period_ns;
-      t.now_mono_ns = t.deadline_mono_ns + 5'000;
-      const std::int64_t a = mono_now_ns();
-      src->read(t, sample);
-      const std::int64_t d = mono_now_ns() - a;
-      if (i >= warmup) source_read.push_back(d);
-    }
-  }
-  // The cost of the timer itself.
-  std::vector<std::int64_t> timer;
-  timer.reserve(10'000);
-  for (int i = 0; i < 10'000; ++i) {
-    const std::int64_t a = mono_now_ns();
-    timer.push_back(mono_now_ns() - a);
-  }
+  const auto source_read = time_source_reads(rig, warmup, cycles);
+  const auto timer = time_the_timer();
 
   const auto paced_inline = paced(paced_cycles, false);
   const auto paced_thread = paced(paced_cycles, true);
@@ -294,17 +311,7 @@ int harness(std::int64_t cycles, std::int64_t paced_cycles, const std::string& j
   j += "  \"allocations_per_cycle\": " +
        std::to_string(static_cast<double>(thread_allocs) / static_cast<double>(cycles)) + "\n";
   j += "}\n";
-  if (json_path.empty() || json_path == "-") {
-    std::fputs(j.c_str(), stdout);
-  } else {
-    FILE* f = std::fopen(json_path.c_str(), "w");
-    if (f == nullptr) {
-      std::perror(json_path.c_str());
-      return 1;
-    }
-    std::fputs(j.c_str(), f);
-    std::fclose(f);
-  }
+  if (!write_json(j, json_path)) return 1;
   return thread_allocs == 0 ? 0 : 3;
 }
 

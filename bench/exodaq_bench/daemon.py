@@ -17,6 +17,7 @@ def write_config(src, path, prefix, rate_hz=1000, priority=0, lock_memory=False)
     cfg = os.path.join(src, "config") + "/"
     text = text.replace("model: models/", "model: " + cfg + "models/")
     text = text.replace("calibration: calibration/", "calibration: " + cfg + "calibration/")
+    text = text.replace("task: tasks/", "task: " + cfg + "tasks/")
     text = re.sub(r'prefix: ""', f'prefix: "{prefix}"', text)
     text = re.sub(r"rate_hz: \d+", f"rate_hz: {rate_hz}", text)
     text = re.sub(r"priority: \d+", f"priority: {priority}", text)

@@ -108,15 +108,19 @@ ROWS = [
     Row("rss", "e2e", "RSS at 1 kHz, {policy}", "resources.rss_mib", Target("<=", 16, " MiB"),
         policies="each", exodaq="{resources.rss_mib:.1f} MiB",
         reference="bare publisher {reference_resources.rss_mib:.1f} MiB"),
+    # Issue 17: whole process, CPU time, one core; RSS bounded whatever the length.
     Row("replay_speed", "replay",
-        "replay at `--speed max` (full pipeline + log writing), cycle loop, CPU time / wall",
-        "loop_cpu_speed_x", Target(">=", 1000, "×", of="real time"), note="CPU time",
-        exodaq="{loop_cpu_speed_x:.0f}× / {loop_wall_speed_x:.0f}× real time",
-        reference="real time (1×); whole process CPU / wall {process_cpu_speed_x:.0f}× / "
-                  "{process_wall_speed_x:.0f}×"),
-    Row("replay_rss", "replay", "replay at `--speed max`, peak RSS of the process", "rss_mib",
-        Target("<", 64, " MiB"), exodaq="{rss_mib:.1f} MiB",
-        pending="bench/replay does not report the replay's RSS yet"),
+        "replay at `--speed max` (full pipeline + log writing), whole process, CPU time / wall",
+        "process_cpu_speed_x", Target(">=", 1000, "×", of="real time"),
+        note="whole process, CPU time",
+        exodaq="{process_cpu_speed_x:.0f}× / {process_wall_speed_x:.0f}× real time",
+        reference="real time (1×); cycle loop CPU / wall {loop_cpu_speed_x:.0f}× / "
+                  "{loop_wall_speed_x:.0f}×"),
+    Row("replay_rss", "replay",
+        "replay at `--speed max`, peak RSS of the process, 10- and 60-minute recordings",
+        "rss_mib", Target("<", 64, " MiB"), note="the larger of the two",
+        exodaq="{rss_short_mib:.1f} MiB ({minutes:g} min) / {rss_long_mib:.1f} MiB "
+               "({rss_long_min:g} min)"),
 ]
 
 BY_ID = {row.id: row for row in ROWS}

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "exodaq/drivers/source_factory.hpp"
+
 namespace exodaq::core {
 
 std::unique_ptr<PipelineConfig> make_pipeline_config(const config::ServiceConfig& c) {
@@ -48,6 +50,24 @@ AcquisitionConfig make_acquisition_config(const config::ServiceConfig& c) {
     a.joint_names[static_cast<std::size_t>(i)] = joints[static_cast<std::size_t>(i)].name;
   }
   return a;
+}
+
+std::unique_ptr<Acquisition> build_acquisition(const config::ServiceConfig& c,
+                                               AcquisitionOptions o) {
+  AcquisitionConfig a = make_acquisition_config(c);
+  if (!o.realtime) {
+    a.cpu = -1;
+    a.priority = 0;
+    a.lock_memory = false;
+  }
+  a.run_id = o.run_id;
+  a.record_lateness_cycles = o.record_lateness_cycles;
+  auto source = o.source ? std::move(o.source)
+                         : drivers::make_source(c.source, config::make_source_context(c));
+  auto sink = o.sink ? std::move(o.sink) : make_lcm_sink(c.lcm.url);
+  return std::make_unique<Acquisition>(std::move(a), make_pipeline_config(c), std::move(source),
+                                       std::move(sink), o.channel_prefix.value_or(c.lcm.prefix),
+                                       std::move(o.clock));
 }
 
 }  // namespace exodaq::core

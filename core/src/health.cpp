@@ -64,4 +64,20 @@ ServiceState next_state(ServiceState current, const WindowFacts& f,
   return clean ? ServiceState::kRunning : ServiceState::kDegraded;
 }
 
+ServiceState ServiceStateMachine::next(ServiceState current, const WindowFacts& facts,
+                                       std::int64_t ms_since_last_sample) noexcept {
+  if (current == ServiceState::kStopping) return current;
+  ServiceState next = next_state(current, facts, ms_since_last_sample, settings_.fault_after_ms);
+  if (settings_.hold_fault_while_samples && facts.samples_present > 0 &&
+      next == ServiceState::kFault) {
+    next = current;
+  }
+  clean_windows_ = next == ServiceState::kRunning ? clean_windows_ + 1 : 0;
+  if (next == ServiceState::kRunning && current == ServiceState::kDegraded &&
+      clean_windows_ < settings_.clean_windows_to_recover) {
+    next = current;
+  }
+  return next;
+}
+
 }  // namespace exodaq::core

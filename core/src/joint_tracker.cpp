@@ -114,58 +114,72 @@ JointEvent JointTracker::update(std::int64_t t_ns, bool fresh, std::uint16_t cou
                                 bool board_error) noexcept {
   JointEvent event = JointEvent::kNone;
   if (fresh) {
-    if (!have_count_) {
-      have_count_ = true;
-      count_ = count16;
-      powerup_count_ = count_;
-    } else {
-      const std::int64_t step = step16(count_, count16);
-      const double dt_s = static_cast<double>(t_ns - last_fresh_ns_) * 1e-9;
-      // The most counts the joint can physically produce since the last fresh
-      // count, plus one count of quantisation.
-      const double max_counts = config_.max_speed_rad_s * (dt_s > 0 ? dt_s : 0.0) / rad_per_count_;
-      if (max_counts >= 32767.0) {
-        // So long without a count that the 16-bit step could be off by 65536:
-        // the count is unknowable until the next index.
-        suspect_ = true;
-        event = JointEvent::kUnwrapAmbiguous;
-      } else if (static_cast<double>(std::llabs(step)) > max_counts + 1.0) {
-        ++counters_.glitches;
-        suspect_ = true;
-        event = JointEvent::kGlitch;
-      }
-      count_ += step;
-    }
-    last_fresh_ns_ = t_ns;
-    stale_ = false;
-    update_velocity(t_ns);
+    take_count(t_ns, count16, event);
   } else if (have_count_ && t_ns - last_fresh_ns_ > config_.stale_ns && !stale_) {
     stale_ = true;
     ++counters_.stale_events;
     if (event == JointEvent::kNone) event = JointEvent::kStale;
   }
-
   if (index_valid && have_count_) {
     const std::int64_t index_count = count_ + step16(count_, index_count16);
     if (homing_ != HomingState::kHomed) {
       home_on_index(index_count, event);
     } else {
-      const std::int64_t travel = index_count - ref_count_;
-      const std::int64_t turns = round_div(travel, config_.counts_per_rev);
-      const std::int64_t drift = travel - turns * config_.counts_per_rev;
-      counters_.last_index_drift_counts = drift;
-      if (std::llabs(drift) > config_.index_tolerance_counts) {
-        // Counts were lost or gained: re-home on this index (seed 000 eq. 4).
-        ++counters_.lost_count_events;
-        ref_turns_ += config_.direction * turns;
-        ref_count_ = index_count;
-        lost_counts_until_ns_ = t_ns + config_.fault_hold_ns;
-        event = JointEvent::kLostCounts;
-      }
-      suspect_ = false;  // the index has verified (or corrected) the count
+      check_index(t_ns, index_count, event);
     }
   }
+  update_reading(t_ns, fresh, board_error, event);
+  return event;
+}
 
+void JointTracker::take_count(std::int64_t t_ns, std::uint16_t count16,
+                              JointEvent& event) noexcept {
+  if (!have_count_) {
+    have_count_ = true;
+    count_ = count16;
+    powerup_count_ = count_;
+  } else {
+    const std::int64_t step = step16(count_, count16);
+    const double dt_s = static_cast<double>(t_ns - last_fresh_ns_) * 1e-9;
+    // The most counts the joint can physically produce since the last fresh
+    // count, plus one count of quantisation.
+    const double max_counts = config_.max_speed_rad_s * (dt_s > 0 ? dt_s : 0.0) / rad_per_count_;
+    if (max_counts >= 32767.0) {
+      // So long without a count that the 16-bit step could be off by 65536:
+      // the count is unknowable until the next index.
+      suspect_ = true;
+      event = JointEvent::kUnwrapAmbiguous;
+    } else if (static_cast<double>(std::llabs(step)) > max_counts + 1.0) {
+      ++counters_.glitches;
+      suspect_ = true;
+      event = JointEvent::kGlitch;
+    }
+    count_ += step;
+  }
+  last_fresh_ns_ = t_ns;
+  stale_ = false;
+  update_velocity(t_ns);
+}
+
+void JointTracker::check_index(std::int64_t t_ns, std::int64_t index_count,
+                               JointEvent& event) noexcept {
+  const std::int64_t travel = index_count - ref_count_;
+  const std::int64_t turns = round_div(travel, config_.counts_per_rev);
+  const std::int64_t drift = travel - turns * config_.counts_per_rev;
+  counters_.last_index_drift_counts = drift;
+  if (std::llabs(drift) > config_.index_tolerance_counts) {
+    // Counts were lost or gained: re-home on this index (seed 000 eq. 4).
+    ++counters_.lost_count_events;
+    ref_turns_ += config_.direction * turns;
+    ref_count_ = index_count;
+    lost_counts_until_ns_ = t_ns + config_.fault_hold_ns;
+    event = JointEvent::kLostCounts;
+  }
+  suspect_ = false;  // the index has verified (or corrected) the count
+}
+
+void JointTracker::update_reading(std::int64_t t_ns, bool fresh, bool board_error,
+                                  JointEvent& event) noexcept {
   JointReading& r = reading_;
   r.count = count_;
   r.homing = homing_;
@@ -190,7 +204,6 @@ JointEvent JointTracker::update(std::int64_t t_ns, bool fresh, std::uint16_t cou
   }
   out_of_range_ = beyond;
   r.flags = flags;
-  return event;
 }
 
 }  // namespace exodaq::core

@@ -19,6 +19,7 @@
 #include <cstdlib>
 #include <iostream>
 #include <mutex>
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -27,7 +28,7 @@
 #include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
-#include "exodaq/drivers/source_factory.hpp"
+#include "exodaq/drivers/backend.hpp"
 #include "exodaq/version.hpp"
 
 namespace exodaq::daemon {
@@ -35,7 +36,6 @@ namespace exodaq::daemon {
 using namespace core;  // NOLINT(google-build-using-namespace): the daemon wires the core
 using config::load_service_config;
 using config::LoggingSettings;
-using config::make_source_context;
 using config::ServiceConfig;
 using config::to_yaml;
 
@@ -349,10 +349,9 @@ void notify(const std::string& text) {
   sd_notify(0, text.c_str());
 }
 
-}  // namespace
-
-int run_daemon(const DaemonOptions& options) {
-  ServiceConfig config;
+// The configuration, or the exit code when there is nothing more to do
+// (--print-config, --check-config, or a bad file).
+std::optional<int> load_config(const DaemonOptions& options, ServiceConfig& config) {
   try {
     config = load_service_config(options.config_path);
   } catch (const config::ConfigError& e) {
@@ -373,40 +372,49 @@ int run_daemon(const DaemonOptions& options) {
                 config.model.chain.joint_count());
     return 0;
   }
+  return std::nullopt;
+}
 
-  // Every thread created from here on inherits the blocked set: signals are
-  // taken synchronously by the main thread only.
+// SIGTERM, SIGINT and SIGHUP blocked here and in every thread created from
+// here on: the main thread takes them synchronously.
+sigset_t block_signals() {
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGTERM);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGHUP);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  return signals;
+}
 
-  const Logging logging = make_logger(config.logging, options.log_level);
-  const auto& logger = logging.logger;
-  AcquisitionConfig acq_config = make_acquisition_config(config);
+void shut_down_logging(const Logging& logging) {
+  logging.logger->flush();
+  spdlog::shutdown();
+}
+
+// The running acquisition, or null after reporting why it cannot start.
+std::unique_ptr<Acquisition> start_acquisition(const ServiceConfig& config,
+                                               const DaemonOptions& options,
+                                               const Logging& logging) {
+  AcquisitionOptions acquisition;
   if (!options.lateness_log.empty()) {
     const double seconds = options.duration_s > 0 ? options.duration_s + 5.0 : 3600.0;
-    acq_config.record_lateness_cycles = static_cast<std::int64_t>(seconds * config.loop.rate_hz);
+    acquisition.record_lateness_cycles = static_cast<std::int64_t>(seconds * config.loop.rate_hz);
   }
-  const std::int64_t started_ns = mono_now_ns();
-  std::unique_ptr<Acquisition> acq;
   try {
-    const drivers::SourceContext ctx = make_source_context(config);
-    acq = std::make_unique<Acquisition>(acq_config, make_pipeline_config(config),
-                                        drivers::make_source(config.source, ctx),
-                                        make_lcm_sink(config.lcm.url), config.lcm.prefix, nullptr);
+    auto acq = build_acquisition(config, std::move(acquisition));
     acq->start();
+    return acq;
   } catch (const std::exception& e) {
     spdlog::critical("cannot start: {}{}", e.what(), fields({{"EXODAQ_EVENT", "start_failed"}}));
     notify("STATUS=cannot start: " + std::string(e.what()));
-    logger->flush();
-    spdlog::shutdown();
+    shut_down_logging(logging);
     if (!logging.journal) std::fprintf(stderr, "exodaqd: cannot start: %s\n", e.what());
-    return 1;
+    return nullptr;
   }
-  const std::int64_t run_id = acq->run_id();
+}
+
+void log_started(const ServiceConfig& config, std::int64_t run_id) {
   spdlog::info(
       "exodaqd {} started: rig {}, source {}, {:.0f} Hz, model {}, calibration {}, LCM {} prefix "
       "'{}', run id {}{}",
@@ -416,126 +424,191 @@ int run_daemon(const DaemonOptions& options) {
               {"EXODAQ_RIG", config.rig},
               {"EXODAQ_RUN_ID", std::to_string(run_id)},
               {"EXODAQ_VERSION", exodaq::kVersion}}));
+}
 
+// The main thread while the loop runs: signals, reloads, the loop's events,
+// and systemd's READY=1, WATCHDOG=1 and STATUS=.
+class Supervisor {
+ public:
+  // `started_ns`: when start-up began (--duration counts from there).
+  Supervisor(Acquisition& acq, ServiceConfig& config, const DaemonOptions& options,
+             const sigset_t& signals, std::int64_t started_ns);
+  // Until SIGTERM/SIGINT, --duration or the end of the source.
+  void run();
+
+ private:
+  void take_signal();
+  void reload();
+  void drain_events();
+  void notify_systemd(std::int64_t now);
+  void check_end(std::int64_t now);
+
+  Acquisition& acq_;
+  ServiceConfig& config_;
+  const DaemonOptions& options_;
+  const sigset_t& signals_;
+  const std::int64_t started_ns_;
+  bool watchdog_ = false;
+  std::int64_t watchdog_every_ns_ = 0;
+  std::int64_t wait_ns_ = 20'000'000;
+  std::int64_t last_ping_ns_ = mono_now_ns();
+  std::int64_t cycles_at_last_ping_ = 0;
+  std::int64_t last_status_ns_ = mono_now_ns();
+  std::int64_t cycles_at_last_status_ = 0;
+  double rate_hz_ = 0.0;
+  ServiceState notified_state_ = ServiceState::kStarting;
+  bool ready_ = false;
+  bool realtime_logged_ = false;
+  bool running_ = true;
+};
+
+Supervisor::Supervisor(Acquisition& acq, ServiceConfig& config, const DaemonOptions& options,
+                       const sigset_t& signals, std::int64_t started_ns)
+    : acq_(acq), config_(config), options_(options), signals_(signals), started_ns_(started_ns) {
   // Watchdog (WatchdogSec= in the unit): ping at half the interval, and only
   // while cycles progress, so a stalled loop lets systemd's watchdog fire. A
   // loop that cycles without samples (state fault) still pings: restarting
   // would not bring the bus back, and the state says what is wrong.
   std::uint64_t watchdog_usec = 0;
-  const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0 && watchdog_usec > 0;
-  const std::int64_t watchdog_every_ns = static_cast<std::int64_t>(watchdog_usec) * 1000 / 2;
-  if (watchdog) {
+  watchdog_ = sd_watchdog_enabled(0, &watchdog_usec) > 0 && watchdog_usec > 0;
+  watchdog_every_ns_ = static_cast<std::int64_t>(watchdog_usec) * 1000 / 2;
+  if (watchdog_) {
     spdlog::info("systemd watchdog: {} ms, pinging every {} ms while the loop cycles",
-                 watchdog_usec / 1000, watchdog_every_ns / 1'000'000);
+                 watchdog_usec / 1000, watchdog_every_ns_ / 1'000'000);
+    // The main thread wakes at least 4 times per ping interval.
+    wait_ns_ = std::clamp<std::int64_t>(watchdog_every_ns_ / 4, 1'000'000, 20'000'000);
   }
-  // The main thread wakes at least 4 times per ping interval.
-  const std::int64_t wait_ns =
-      watchdog ? std::clamp<std::int64_t>(watchdog_every_ns / 4, 1'000'000, 20'000'000)
-               : 20'000'000;
-  std::int64_t last_ping_ns = mono_now_ns();
-  std::int64_t cycles_at_last_ping = 0;
-  std::int64_t last_status_ns = mono_now_ns();
-  std::int64_t cycles_at_last_status = 0;
-  double rate_hz = 0.0;
-  ServiceState notified_state = ServiceState::kStarting;
-  bool ready = false;
-  bool realtime_logged = false;
-  bool stall_logged = false;
-  const char* stall_env = std::getenv("EXODAQ_TEST_STALL_AFTER_CYCLES");
-  const std::int64_t stall_after = stall_env != nullptr ? std::strtoll(stall_env, nullptr, 10) : -1;
+}
 
-  int exit_code = 0;
-  bool running = true;
-  while (running) {
-    timespec wait{0, static_cast<long>(wait_ns)};
-    siginfo_t info{};
-    const int sig = sigtimedwait(&signals, &info, &wait);
-    if (sig == SIGTERM || sig == SIGINT) {
-      spdlog::info("{} received: stopping", sig == SIGTERM ? "SIGTERM" : "SIGINT");
-      running = false;
-    } else if (sig == SIGHUP) {
-      notify("RELOADING=1\nSTATUS=reloading " + options.config_path);
-      try {
-        ServiceConfig next = load_service_config(options.config_path);
-        const std::string fixed = restart_only_changes(config, next);
-        if (!fixed.empty())
-          spdlog::warn("reload: changes to {} take effect only after a restart", fixed);
-        acq->stage_reload(make_pipeline_config(next), next.clock);
-        spdlog::info("reload: {} and {} accepted", next.calibration_path, next.model_path);
-        config = std::move(next);
-      } catch (const std::exception& e) {
-        spdlog::error("reload rejected, previous configuration stays: {}{}", e.what(),
-                      fields({{"EXODAQ_EVENT", "reload_rejected"}}));
-      }
-      notify("READY=1\n" + status_line(*acq, rate_hz));
+void Supervisor::run() {
+  while (running_) {
+    take_signal();
+    drain_events();
+    if (!realtime_logged_ && acq_.cycles() > 0) {
+      spdlog::info("loop thread: {}", acq_.realtime_report());
+      realtime_logged_ = true;
     }
-    LogEvent event;
-    while (acq->pop_event(event)) log_event(event, acq_config, run_id, acq->state());
-    if (!realtime_logged && acq->cycles() > 0) {
-      spdlog::info("loop thread: {}", acq->realtime_report());
-      realtime_logged = true;
-    }
-
-    const std::int64_t cycles = acq->cycles();
     const std::int64_t now = mono_now_ns();
-    if (!ready && cycles > 0) {
-      // The first complete cycle: published, so clients can subscribe now.
-      notify("READY=1\n" + status_line(*acq, rate_hz));
-      notified_state = acq->state();
-      ready = true;
-    }
-    if (stall_after >= 0 && cycles >= stall_after && !stall_logged) {
-      spdlog::warn("EXODAQ_TEST_STALL_AFTER_CYCLES={}: stalling the loop (test hook)", stall_after);
-      acq->set_stall_for_test(true);
-      stall_logged = true;
-    }
-    if (watchdog && now - last_ping_ns >= watchdog_every_ns) {
-      if (cycles > cycles_at_last_ping) {
-        notify("WATCHDOG=1");
-        cycles_at_last_ping = cycles;
-      }
-      last_ping_ns = now;
-    }
-    const bool second = now - last_status_ns >= 1'000'000'000;
-    if (second) {
-      rate_hz = static_cast<double>(cycles - cycles_at_last_status) * 1e9 /
-                static_cast<double>(now - last_status_ns);
-      last_status_ns = now;
-      cycles_at_last_status = cycles;
-    }
-    // STATUS=: once a second, and at once when the state changes.
-    if (ready && (second || acq->state() != notified_state)) {
-      notified_state = acq->state();
-      notify(status_line(*acq, rate_hz));
-    }
-    if (options.duration_s > 0 &&
-        now - started_ns >= static_cast<std::int64_t>(options.duration_s * 1e9)) {
-      spdlog::info("--duration {} s reached: stopping", options.duration_s);
-      running = false;
-    }
-    if (acq->finished()) {
-      spdlog::info("source finished");
-      running = false;
-    }
+    notify_systemd(now);
+    check_end(now);
   }
-  notify("STOPPING=1\nSTATUS=stopping");
-  acq->stop();
+}
+
+void Supervisor::take_signal() {
+  timespec wait{0, static_cast<long>(wait_ns_)};
+  siginfo_t info{};
+  const int sig = sigtimedwait(&signals_, &info, &wait);
+  if (sig == SIGTERM || sig == SIGINT) {
+    spdlog::info("{} received: stopping", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+    running_ = false;
+  } else if (sig == SIGHUP) {
+    reload();
+  }
+}
+
+void Supervisor::reload() {
+  notify("RELOADING=1\nSTATUS=reloading " + options_.config_path);
+  try {
+    ServiceConfig next = load_service_config(options_.config_path);
+    const std::string fixed = restart_only_changes(config_, next);
+    if (!fixed.empty())
+      spdlog::warn("reload: changes to {} take effect only after a restart", fixed);
+    acq_.stage_reload(make_pipeline_config(next), next.clock);
+    spdlog::info("reload: {} and {} accepted", next.calibration_path, next.model_path);
+    config_ = std::move(next);
+  } catch (const std::exception& e) {
+    spdlog::error("reload rejected, previous configuration stays: {}{}", e.what(),
+                  fields({{"EXODAQ_EVENT", "reload_rejected"}}));
+  }
+  notify("READY=1\n" + status_line(acq_, rate_hz_));
+}
+
+void Supervisor::drain_events() {
   LogEvent event;
-  while (acq->pop_event(event)) log_event(event, acq_config, run_id, acq->state());
-  if (!options.lateness_log.empty()) {
-    if (std::FILE* f = std::fopen(options.lateness_log.c_str(), "w")) {
-      for (const std::int32_t v : acq->lateness_record()) std::fprintf(f, "%d\n", v);
-      std::fclose(f);
-    } else {
-      spdlog::error("cannot write {}", options.lateness_log);
-    }
+  while (acq_.pop_event(event)) log_event(event, acq_.config(), acq_.run_id(), acq_.state());
+}
+
+void Supervisor::notify_systemd(std::int64_t now) {
+  const std::int64_t cycles = acq_.cycles();
+  if (!ready_ && cycles > 0) {
+    // The first complete cycle: published, so clients can subscribe now.
+    notify("READY=1\n" + status_line(acq_, rate_hz_));
+    notified_state_ = acq_.state();
+    ready_ = true;
   }
-  spdlog::info("stopped after {} cycles ({} overruns, {} publish failures){}", acq->cycles(),
-               acq->overruns(), acq->publisher().failures() + acq->publisher().ring_drops(),
-               fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", std::to_string(run_id)}}));
-  logger->flush();
-  spdlog::shutdown();
-  return exit_code;
+  if (watchdog_ && now - last_ping_ns_ >= watchdog_every_ns_) {
+    if (cycles > cycles_at_last_ping_) {
+      notify("WATCHDOG=1");
+      cycles_at_last_ping_ = cycles;
+    }
+    last_ping_ns_ = now;
+  }
+  const bool second = now - last_status_ns_ >= 1'000'000'000;
+  if (second) {
+    rate_hz_ = static_cast<double>(cycles - cycles_at_last_status_) * 1e9 /
+               static_cast<double>(now - last_status_ns_);
+    last_status_ns_ = now;
+    cycles_at_last_status_ = cycles;
+  }
+  // STATUS=: once a second, and at once when the state changes.
+  if (ready_ && (second || acq_.state() != notified_state_)) {
+    notified_state_ = acq_.state();
+    notify(status_line(acq_, rate_hz_));
+  }
+}
+
+void Supervisor::check_end(std::int64_t now) {
+  if (options_.duration_s > 0 &&
+      now - started_ns_ >= static_cast<std::int64_t>(options_.duration_s * 1e9)) {
+    spdlog::info("--duration {} s reached: stopping", options_.duration_s);
+    running_ = false;
+  }
+  if (acq_.finished()) {
+    spdlog::info("source finished");
+    running_ = false;
+  }
+}
+
+void write_lateness_log(const Acquisition& acq, const std::string& path) {
+  if (std::FILE* f = std::fopen(path.c_str(), "w")) {
+    for (const std::int32_t v : acq.lateness_record()) std::fprintf(f, "%d\n", v);
+    std::fclose(f);
+  } else {
+    spdlog::error("cannot write {}", path);
+  }
+}
+
+// Stops the loop (its final status published), logs what is left, exits the logger.
+void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& logging) {
+  notify("STOPPING=1\nSTATUS=stopping");
+  acq.stop();
+  LogEvent event;
+  while (acq.pop_event(event)) log_event(event, acq.config(), acq.run_id(), acq.state());
+  if (acq.events_dropped() > 0) {
+    spdlog::warn("{} loop events were not logged: the event ring was full", acq.events_dropped());
+  }
+  if (!options.lateness_log.empty()) write_lateness_log(acq, options.lateness_log);
+  spdlog::info(
+      "stopped after {} cycles ({} overruns, {} publish failures){}", acq.cycles(), acq.overruns(),
+      acq.publisher().failures() + acq.publisher().ring_drops(),
+      fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", std::to_string(acq.run_id())}}));
+  shut_down_logging(logging);
+}
+
+}  // namespace
+
+int run_daemon(const DaemonOptions& options) {
+  ServiceConfig config;
+  if (const auto exit_code = load_config(options, config)) return *exit_code;
+  const sigset_t signals = block_signals();
+  const Logging logging = make_logger(config.logging, options.log_level);
+  const std::int64_t started_ns = mono_now_ns();
+  const std::unique_ptr<Acquisition> acq = start_acquisition(config, options, logging);
+  if (!acq) return 1;
+  log_started(config, acq->run_id());
+  Supervisor(*acq, config, options, signals, started_ns).run();
+  shut_down(*acq, options, logging);
+  return 0;
 }
 
 }  // namespace exodaq::daemon

@@ -6,8 +6,24 @@ namespace {
 constexpr std::uint32_t kHalfA = 0x07;
 constexpr std::uint32_t kHalfB = 0x38;
 constexpr std::uint32_t kAllChannels = 0x3F;
+constexpr std::uint32_t kEventFlags = sample_flag::kSeqGap | sample_flag::kDuplicate |
+                                      sample_flag::kOutOfOrder | sample_flag::kBusError;
 
 }  // namespace
+
+void merge_superseded(const EncoderSample& older, EncoderSample& newer) noexcept {
+  newer.flags |= older.flags & kEventFlags;
+  for (int c = 0; c < kChannelCount; ++c) {
+    const std::uint32_t bit = 1U << c;
+    if ((older.index_latched & bit) == 0 || (newer.index_latched & bit) != 0) continue;
+    newer.index_latched |= bit;
+    if ((older.index_count_valid & bit) != 0 && (newer.index_count_valid & bit) == 0) {
+      newer.index_count_valid |= bit;
+      newer.index_count16[static_cast<std::size_t>(c)] =
+          older.index_count16[static_cast<std::size_t>(c)];
+    }
+  }
+}
 
 BoardDecoder::BoardDecoder(const BoardDecoderConfig& config) noexcept : config_(config) {
   reset();
@@ -273,6 +289,18 @@ bool BoardDecoder::poll_sample(EncoderSample& out) noexcept {
   finish(out);
   ++stats_.samples;
   return true;
+}
+
+int BoardDecoder::poll_newest(EncoderSample& out) noexcept {
+  if (!poll_sample(out)) return -1;
+  int superseded = 0;
+  EncoderSample newer;
+  while (poll_sample(newer)) {
+    merge_superseded(out, newer);
+    out = newer;
+    ++superseded;
+  }
+  return superseded;
 }
 
 bool BoardDecoder::flush(EncoderSample& out) noexcept {

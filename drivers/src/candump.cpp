@@ -101,17 +101,11 @@ std::string_view to_string(CandumpError e) noexcept {
   return "unknown error";
 }
 
-CandumpError parse_candump_line(std::string_view line, can::CanFrame& out) noexcept {
-  out = can::CanFrame{};
-  // Trim: candump writes '\n'; files edited elsewhere may carry '\r'.
-  while (!line.empty() && (is_space(line.back()) || line.back() == '\n' || line.back() == '\r')) {
-    line.remove_suffix(1);
-  }
-  std::size_t pos = 0;
-  while (pos < line.size() && is_space(line[pos])) ++pos;
-  if (pos == line.size()) return CandumpError::kBlank;
+namespace {
 
-  // (seconds.fraction)
+// "(seconds.fraction)" at `pos`.
+CandumpError parse_timestamp(std::string_view line, std::size_t& pos,
+                             std::int64_t& stamp_ns) noexcept {
   if (line[pos] != '(') return CandumpError::kTimestamp;
   ++pos;
   std::int64_t seconds = 0;
@@ -137,9 +131,13 @@ CandumpError parse_candump_line(std::string_view line, can::CanFrame& out) noexc
   }
   ++pos;
   for (int d = fraction_digits; d < 9; ++d) fraction_ns *= 10;
-  const std::int64_t stamp_ns = seconds * 1'000'000'000 + fraction_ns;
+  stamp_ns = seconds * 1'000'000'000 + fraction_ns;
+  return CandumpError::kNone;
+}
 
-  // interface
+// " iface frame [R|T]" from `pos`: the frame token.
+CandumpError parse_interface_and_frame(std::string_view line, std::size_t pos,
+                                       std::string_view& frame) noexcept {
   const std::size_t before_iface = pos;
   while (pos < line.size() && is_space(line[pos])) ++pos;
   if (pos == before_iface || pos == line.size()) return CandumpError::kInterface;
@@ -147,20 +145,21 @@ CandumpError parse_candump_line(std::string_view line, can::CanFrame& out) noexc
   const std::size_t before_frame = pos;
   while (pos < line.size() && is_space(line[pos])) ++pos;
   if (pos == before_frame || pos == line.size()) return CandumpError::kInterface;
-
   // The frame token, then an optional direction annotation (" R" / " T").
   std::size_t end = pos;
   while (end < line.size() && !is_space(line[end])) ++end;
-  std::string_view frame = line.substr(pos, end - pos);
+  frame = line.substr(pos, end - pos);
   std::size_t rest = end;
   while (rest < line.size() && is_space(line[rest])) ++rest;
   if (rest < line.size()) {
     const std::string_view tail = line.substr(rest);
     if (tail != "R" && tail != "T") return CandumpError::kTrailing;
   }
+  return CandumpError::kNone;
+}
 
-  // identifier
-  std::size_t p = 0;
+// The identifier up to '#' (3 or 8 hex digits); `p` ends past the '#'.
+CandumpError parse_id(std::string_view frame, std::size_t& p, can::CanFrame& out) noexcept {
   std::uint32_t id = 0;
   int id_digits = 0;
   while (p < frame.size() && frame[p] != '#') {
@@ -177,30 +176,29 @@ CandumpError parse_candump_line(std::string_view line, can::CanFrame& out) noexc
     // candump prints the EFF and RTR flags as frame syntax, never as ID bits;
     // CAN_ERR_FLAG marks an error frame (id = error classes).
     if ((id & (kCanEffFlag | kCanRtrFlag)) != 0) return CandumpError::kId;
-    if ((id & kCanErrFlag) != 0) {
-      out.flags |= can::frame_flag::kError;
-      out.id = id & kCanEffMask;
-    } else {
-      out.flags |= can::frame_flag::kExtended;
-      out.id = id & kCanEffMask;
-    }
+    out.flags |= (id & kCanErrFlag) != 0 ? can::frame_flag::kError : can::frame_flag::kExtended;
+    out.id = id & kCanEffMask;
   } else {
     return CandumpError::kId;
   }
   ++p;  // '#'
+  return CandumpError::kNone;
+}
 
-  int len = 0;
+// After "id#": CAN FD "#<flags><data>", a remote request "R[len][_dlc]", or data.
+CandumpError parse_payload(std::string_view frame, std::size_t p, can::CanFrame& out,
+                           int& len) noexcept {
+  len = 0;
   if (p < frame.size() && frame[p] == '#') {
-    // CAN FD: "##<flags nibble><data>"
     ++p;
     if (p >= frame.size() || hex_value(frame[p]) < 0) return CandumpError::kFdFlags;
     ++p;
     out.flags |= can::frame_flag::kFd;
     const CandumpError e = parse_data(frame, p, kCanFdMaxLen, out, len);
     if (e != CandumpError::kNone) return e;
-    if (p < frame.size()) return CandumpError::kData;  // no len8_dlc on FD
-  } else if (p < frame.size() && (frame[p] == 'R' || frame[p] == 'r')) {
-    // Remote request: "R", "R5", "R8_9"
+    return p < frame.size() ? CandumpError::kData : CandumpError::kNone;  // no len8_dlc on FD
+  }
+  if (p < frame.size() && (frame[p] == 'R' || frame[p] == 'r')) {
     ++p;
     out.flags |= can::frame_flag::kRtr;
     if (p < frame.size() && is_digit(frame[p])) {
@@ -209,13 +207,38 @@ CandumpError parse_candump_line(std::string_view line, can::CanFrame& out) noexc
       ++p;
     }
     if (parse_len8_dlc(frame, p, len) != CandumpError::kNone) return CandumpError::kLength;
-    if (p < frame.size()) return CandumpError::kLength;
-  } else {
-    const CandumpError e = parse_data(frame, p, can::kMaxClassicDlc, out, len);
-    if (e != CandumpError::kNone) return e;
-    if (parse_len8_dlc(frame, p, len) != CandumpError::kNone) return CandumpError::kLength;
-    if (p < frame.size()) return CandumpError::kData;
+    return p < frame.size() ? CandumpError::kLength : CandumpError::kNone;
   }
+  const CandumpError e = parse_data(frame, p, can::kMaxClassicDlc, out, len);
+  if (e != CandumpError::kNone) return e;
+  if (parse_len8_dlc(frame, p, len) != CandumpError::kNone) return CandumpError::kLength;
+  return p < frame.size() ? CandumpError::kData : CandumpError::kNone;
+}
+
+}  // namespace
+
+CandumpError parse_candump_line(std::string_view line, can::CanFrame& out) noexcept {
+  out = can::CanFrame{};
+  // Trim: candump writes '\n'; files edited elsewhere may carry '\r'.
+  while (!line.empty() && (is_space(line.back()) || line.back() == '\n' || line.back() == '\r')) {
+    line.remove_suffix(1);
+  }
+  std::size_t pos = 0;
+  while (pos < line.size() && is_space(line[pos])) ++pos;
+  if (pos == line.size()) return CandumpError::kBlank;
+  std::int64_t stamp_ns = 0;
+  if (const CandumpError e = parse_timestamp(line, pos, stamp_ns); e != CandumpError::kNone) {
+    return e;
+  }
+  std::string_view frame;
+  if (const CandumpError e = parse_interface_and_frame(line, pos, frame);
+      e != CandumpError::kNone) {
+    return e;
+  }
+  std::size_t p = 0;
+  if (const CandumpError e = parse_id(frame, p, out); e != CandumpError::kNone) return e;
+  int len = 0;
+  if (const CandumpError e = parse_payload(frame, p, out, len); e != CandumpError::kNone) return e;
   out.dlc = static_cast<std::uint8_t>(len);
   out.wall_ns = stamp_ns;
   out.mono_ns = stamp_ns;

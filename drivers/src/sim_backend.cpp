@@ -27,6 +27,14 @@ std::shared_ptr<const BackendSettings> parse_sim(config::MapReader* s, config::M
   if (pc < 0 || pc > 0xFFFF)
     s->fail_key("powerup_count", "source.sim.powerup_count must be 0..65535");
   out->powerup_count = static_cast<std::uint16_t>(pc);
+  if (s->has("task")) {
+    out->task_path = s->path("task");
+    out->task = std::make_shared<const sim::SimTaskFile>(sim::load_sim_task(out->task_path));
+  }
+  out->motion = s->choice_or("motion", {"curves", "task"}, out->task ? "task" : "curves");
+  if (out->motion == "task" && !out->task) {
+    s->fail_key("motion", "motion: task needs a task file (source.sim.task)");
+  }
   if (auto faults = s->optional_child("faults")) {
     if (!faults->IsSequence()) s->fail(*faults, "source.sim.faults must be a list");
     for (std::size_t i = 0; i < faults->size(); ++i) {
@@ -45,27 +53,58 @@ std::unique_ptr<EncoderSource> make_sim(const BackendSettings& settings, const S
 
 }  // namespace
 
+namespace {
+
+// A parameter the fault's kind does not take is an error, not ignored.
+bool takes(config::MapReader& f, const sim::SimFaultName& kind, std::uint32_t param,
+           const char* key) {
+  if ((kind.params & param) != 0) return true;
+  if (f.has(key)) {
+    f.fail_key(key, "a " + std::string(kind.name) + " fault takes no " + key +
+                        " (docs/simulator.md, \"Fault kinds\")");
+  }
+  return false;
+}
+
+}  // namespace
+
 sim::SimFault parse_sim_fault(config::MapReader& f) {
   std::vector<std::string> names;
   for (const auto& n : sim::sim_fault_names()) names.emplace_back(n.name);
-  const std::string kind = f.choice("kind", names);
+  const sim::SimFaultName& kind = *sim::find_sim_fault(f.choice("kind", names));
+  namespace p = sim::fault_param;
   sim::SimFault fault;
-  for (const auto& n : sim::sim_fault_names()) {
-    if (n.name == kind) fault.kind = n.kind;
-  }
+  fault.kind = kind.kind;
   fault.start_s = f.number("at_s");
   if (fault.start_s < 0) f.fail_key("at_s", "at_s must be >= 0");
   fault.duration_s = f.number_or("for_s", 0.0);
-  const std::int64_t joint = f.integer_or("joint", 1);
-  if (joint < 1 || joint > sim::kJoints) f.fail_key("joint", "joint must be 1..6");
-  fault.joint = static_cast<int>(joint - 1);
-  fault.counts = f.integer_or("counts", 0);
-  fault.percent = f.number_or("percent", 0.0);
-  if (fault.percent < 0 || fault.percent > 100)
-    f.fail_key("percent", "percent must be in [0, 100]");
-  const std::int64_t bits = f.integer_or("error_bits", 0);
-  if (bits < 0 || bits > 255) f.fail_key("error_bits", "error_bits must be 0..255");
-  fault.error_bits = static_cast<std::uint8_t>(bits);
+  if (fault.kind == sim::SimFault::Kind::kStall && !(fault.duration_s > 0))
+    f.fail_key("for_s", "a stall needs for_s > 0 (seconds the host stalls)");
+  if (takes(f, kind, p::kJoint, "joint")) {
+    const std::int64_t joint = f.integer_or("joint", 1);
+    if (joint < 1 || joint > sim::kJoints) f.fail_key("joint", "joint must be 1..6");
+    fault.joint = static_cast<int>(joint - 1);
+  }
+  if (takes(f, kind, p::kCounts, "counts")) fault.counts = f.integer_or("counts", 0);
+  if (takes(f, kind, p::kPercent, "percent")) {
+    fault.percent = f.number_or("percent", 0.0);
+    if (fault.percent < 0 || fault.percent > 100)
+      f.fail_key("percent", "percent must be in [0, 100]");
+  }
+  if (takes(f, kind, p::kErrorBits, "error_bits")) {
+    const std::int64_t bits = f.integer_or("error_bits", 0);
+    if (bits < 0 || bits > 255) f.fail_key("error_bits", "error_bits must be 0..255");
+    fault.error_bits = static_cast<std::uint8_t>(bits);
+  }
+  if (takes(f, kind, p::kEvery, "every")) {
+    const std::int64_t every = f.integer_or("every", 1);
+    if (every < 1 || every > 1'000'000) f.fail_key("every", "every must be 1..1000000");
+    fault.every = static_cast<int>(every);
+  }
+  if (takes(f, kind, p::kDelay, "delay_us")) {
+    fault.delay_us = f.number_or("delay_us", 0.0);
+    if (fault.delay_us < 0) f.fail_key("delay_us", "delay_us must be >= 0");
+  }
   f.finish();
   return fault;
 }
@@ -73,14 +112,16 @@ sim::SimFault parse_sim_fault(config::MapReader& f) {
 std::string SimSourceSettings::describe() const {
   std::ostringstream s;
   s << "{seed: " << seed << ", loss_percent: " << loss_percent << ", jitter_us: " << jitter_us
-    << ", powerup_count: " << powerup_count;
+    << ", powerup_count: " << powerup_count << ", motion: " << motion;
+  if (!task_path.empty()) s << ", task: " << task_path;
   if (!faults.empty()) {
     s << ", faults: [";
     for (std::size_t i = 0; i < faults.size(); ++i) {
       const sim::SimFault& f = faults[i];
       s << (i ? ", " : "") << "{kind: " << sim::sim_fault_name(f.kind) << ", at_s: " << f.start_s
         << ", for_s: " << f.duration_s << ", joint: " << f.joint + 1 << ", counts: " << f.counts
-        << ", percent: " << f.percent << ", error_bits: " << int{f.error_bits} << "}";
+        << ", percent: " << f.percent << ", error_bits: " << int{f.error_bits}
+        << ", every: " << f.every << ", delay_us: " << f.delay_us << "}";
     }
     s << "]";
   }
@@ -121,6 +162,16 @@ sim::SimOptions sim_options_from(const SimSourceSettings& settings, const Source
     o.motion.home_rad[j] = c.home_rad;
     o.motion.lower_limit_rad[j] = c.lower_rad;
     o.motion.upper_limit_rad[j] = c.upper_rad;
+  }
+  if (settings.motion == "task" && settings.task) {
+    auto task = std::make_shared<sim::SimTask>();
+    task->file = settings.task;
+    task->chain = ctx.chain;
+    task->rig = ctx.rig;
+    for (std::size_t j = 0; j < ctx.joints.size(); ++j) {
+      task->max_speed_rad_s[j] = ctx.joints[j].max_speed_rad_s;
+    }
+    o.motion.task = std::move(task);
   }
   return o;
 }

@@ -1,5 +1,7 @@
 #include "exodaq/drivers/sim_rig.hpp"
 
+#include "exodaq/drivers/sim_task.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -57,9 +59,9 @@ double unit_random(std::uint64_t seed, std::uint64_t stream, std::uint64_t k) no
 // SimMotion
 // ---------------------------------------------------------------------------
 
-SimMotion::SimMotion(const SimMotionOptions& o, const Vec6& index_angle_rad,
-                     const Vec6& index_period_rad)
-    : options_(o) {
+namespace {
+
+void check_motion_options(const SimMotionOptions& o, const Vec6& index_period_rad) {
   for (int j = 0; j < kJoints; ++j) {
     const std::string jn = "joint " + std::to_string(j + 1) + ": ";
     const double lo = o.lower_limit_rad[u(j)];
@@ -81,45 +83,73 @@ SimMotion::SimMotion(const SimMotionOptions& o, const Vec6& index_angle_rad,
       o.round_trips < 1) {
     bad("motion durations, speeds and round_trips must be positive");
   }
+}
 
-  Rng rng(o.seed);
-  auto move_duration = [&](const Vec6& a, const Vec6& b, const Vec6& cap) {
-    double t = o.min_segment_s;
+// Builds the segment lists of SimMotion from one random stream (the order of
+// draws fixes the trajectory of a seed).
+class SegmentBuilder {
+ public:
+  SegmentBuilder(const SimMotionOptions& o, std::vector<SimMotion::Segment>& out, double t0)
+      : o_(o), rng_(o.seed), out_(&out), t_(t0) {}
+  Rng& rng() noexcept { return rng_; }
+  double time() const noexcept { return t_; }
+  void restart(std::vector<SimMotion::Segment>& out) noexcept {
+    out_ = &out;
+    t_ = 0.0;
+  }
+  // Shortest duration keeping every joint within `cap`, stretched at random.
+  double move_duration(const Vec6& a, const Vec6& b, const Vec6& cap) noexcept {
+    double t = o_.min_segment_s;
     for (int j = 0; j < kJoints; ++j) {
       t = std::max(t, 1.875 * std::abs(b[u(j)] - a[u(j)]) / cap[u(j)]);
     }
-    return t * (1.0 + rng.uniform(0.0, o.duration_slack));
-  };
-  auto push = [](std::vector<Segment>& segs, double& t, double dur, const Vec6& a, const Vec6& b) {
-    segs.push_back(Segment{t, dur, a, b});
-    t += dur;
-  };
+    return t * (1.0 + rng_.uniform(0.0, o_.duration_slack));
+  }
+  void push(double duration, const Vec6& a, const Vec6& b) {
+    out_->push_back(SimMotion::Segment{t_, duration, a, b});
+    t_ += duration;
+  }
+  void move(const Vec6& a, const Vec6& b, const Vec6& cap) { push(move_duration(a, b, cap), a, b); }
+  void hold(const Vec6& at, double base_s) {
+    push(base_s * (1.0 + rng_.uniform(0.0, 0.5)), at, at);
+  }
 
-  // Homing: each joint in turn past its index (nearest index instance to home).
-  double t = 0.0;
+ private:
+  const SimMotionOptions& o_;
+  Rng rng_;
+  std::vector<SimMotion::Segment>* out_;
+  double t_;
+};
+
+// Homing: each joint in turn past its index (the index instance nearest home)
+// and back. Returns each joint's swept index angle.
+Vec6 build_homing(const SimMotionOptions& o, const Vec6& index_angle_rad,
+                  const Vec6& index_period_rad, SegmentBuilder& b) {
   const Vec6& home = o.home_rad;
-  if (o.start_hold_s > 0) push(homing_, t, o.start_hold_s, home, home);
+  if (o.start_hold_s > 0) b.push(o.start_hold_s, home, home);
   Vec6 homing_cap;
   homing_cap.fill(o.homing_speed_rad_s);
+  Vec6 index{};
   for (int j = 0; j < kJoints; ++j) {
     const double period = index_period_rad[u(j)];
     const double n = std::round((home[u(j)] - index_angle_rad[u(j)]) / period);
-    const double idx = index_angle_rad[u(j)] + n * period;
-    homing_index_[u(j)] = idx;
+    index[u(j)] = index_angle_rad[u(j)] + n * period;
     if (!o.homing) continue;
-    const double dir = idx >= home[u(j)] ? 1.0 : -1.0;
+    const double dir = index[u(j)] >= home[u(j)] ? 1.0 : -1.0;
     Vec6 target = home;
-    target[u(j)] = idx + dir * o.homing_overshoot_rad;
+    target[u(j)] = index[u(j)] + dir * o.homing_overshoot_rad;
     if (target[u(j)] < o.lower_limit_rad[u(j)] || target[u(j)] > o.upper_limit_rad[u(j)]) {
       bad("joint " + std::to_string(j + 1) +
           ": the homing sweep past the index would leave the joint limits");
     }
-    push(homing_, t, move_duration(home, target, homing_cap), home, target);
-    push(homing_, t, move_duration(target, home, homing_cap), target, home);
+    b.move(home, target, homing_cap);
+    b.move(target, home, homing_cap);
   }
-  homing_end_s_ = t;
+  return index;
+}
 
-  // Round trips. Waypoints as fractions of each joint's task window.
+// The round trips: waypoints as fractions of each joint's task window.
+void build_trips(const SimMotionOptions& o, SegmentBuilder& b) {
   struct Range {
     double lo, hi;
   };
@@ -132,33 +162,58 @@ SimMotion::SimMotion(const SimMotionOptions& o, const Vec6& index_angle_rad,
     for (int j = 0; j < kJoints; ++j) {
       const double lo = o.task_lower_rad[u(j)];
       const double hi = o.task_upper_rad[u(j)];
-      w[u(j)] = lo + (hi - lo) * rng.uniform(r[u(j)].lo, r[u(j)].hi);
+      w[u(j)] = lo + (hi - lo) * b.rng().uniform(r[u(j)].lo, r[u(j)].hi);
     }
     return w;
   };
-  t = 0.0;
+  const Vec6& home = o.home_rad;
+  const Vec6& cap = o.speed_cap_rad_s;
   for (int trip = 0; trip < o.round_trips; ++trip) {
     const Vec6 reach = waypoint(kReach);
     Vec6 grasp = reach;  // a small adjustment around the reach posture
     for (int j = 0; j < kJoints; ++j) {
       const double lo = o.task_lower_rad[u(j)];
       const double hi = o.task_upper_rad[u(j)];
-      grasp[u(j)] = std::clamp(reach[u(j)] + (hi - lo) * rng.uniform(-0.1, 0.1), lo, hi);
+      grasp[u(j)] = std::clamp(reach[u(j)] + (hi - lo) * b.rng().uniform(-0.1, 0.1), lo, hi);
     }
     const Vec6 feed = waypoint(kFeed);
-    const Vec6& cap = o.speed_cap_rad_s;
-    push(trips_, t, move_duration(home, reach, cap), home, reach);
-    push(trips_, t, move_duration(reach, grasp, cap), reach, grasp);
-    push(trips_, t, o.grasp_hold_s * (1.0 + rng.uniform(0.0, 0.5)), grasp, grasp);
-    push(trips_, t, move_duration(grasp, feed, cap), grasp, feed);
-    push(trips_, t, o.feed_hold_s * (1.0 + rng.uniform(0.0, 0.5)), feed, feed);
-    push(trips_, t, move_duration(feed, home, cap), feed, home);
-    push(trips_, t, o.home_hold_s * (1.0 + rng.uniform(0.0, 0.5)), home, home);
+    b.move(home, reach, cap);
+    b.move(reach, grasp, cap);
+    b.hold(grasp, o.grasp_hold_s);
+    b.move(grasp, feed, cap);
+    b.hold(feed, o.feed_hold_s);
+    b.move(feed, home, cap);
+    b.hold(home, o.home_hold_s);
   }
-  cycle_s_ = t;
 }
 
-JointTruth SimMotion::eval(const Segment& s, double t) noexcept {
+}  // namespace
+
+SimMotion::SimMotion(const SimMotionOptions& o, const Vec6& index_angle_rad,
+                     const Vec6& index_period_rad)
+    : options_(o) {
+  check_motion_options(o, index_period_rad);
+  SegmentBuilder b(o, homing_, 0.0);
+  homing_index_ = build_homing(o, index_angle_rad, index_period_rad, b);
+  homing_end_s_ = b.time();
+  if (o.task) {  // homing, the lead-in to the task's first stop, then its loop
+    plan_ = std::make_shared<const SimTaskPlan>(plan_sim_task(*o.task, o, o.seed));
+    for (Segment s : plan_->lead_in) {
+      s.t0 += homing_end_s_;
+      homing_.push_back(s);
+    }
+    homing_end_s_ += plan_->lead_in.back().t0 + plan_->lead_in.back().duration;
+    trips_ = plan_->loop;
+    cycle_s_ = plan_->period_s;
+    return;
+  }
+  b.restart(trips_);
+  build_trips(o, b);
+  cycle_s_ = b.time();
+}
+
+JointTruth SimMotion::eval(const Segment& s, double t) const noexcept {
+  if (s.move >= 0) return sample_move(*plan_, s.move, t - s.t0);
   JointTruth out;
   double tau = (t - s.t0) / s.duration;
   tau = std::clamp(tau, 0.0, 1.0);
@@ -313,16 +368,57 @@ Vec6 index_periods(const SimOptions& o) {
   return v;
 }
 
+void check_fault(const SimFault& f, std::int64_t period_ns) {
+  const std::string what = "fault " + std::string(sim_fault_name(f.kind)) + ": ";
+  if (f.joint < 0 || f.joint >= kJoints) bad(what + "joint must be 1..6");
+  if (!(f.start_s >= 0.0)) bad(what + "at_s must be >= 0");
+  if (!(f.percent >= 0.0 && f.percent <= 100.0)) bad(what + "percent must be in [0, 100]");
+  if (f.every < 1) bad(what + "every must be >= 1");
+  if (!(f.delay_us >= 0.0) ||
+      f.delay_us * 1000.0 >= static_cast<double>(SimRig::kMaxDelayPeriods * period_ns)) {
+    bad(what + "delay_us must be >= 0 and below " + std::to_string(SimRig::kMaxDelayPeriods) +
+        " sampling periods");
+  }
+}
+
 const SimOptions& checked(const SimOptions& o) {
   if (o.period_ns <= 0) bad("period must be positive");
   if (!(o.loss_percent >= 0 && o.loss_percent <= 100)) bad("loss_percent outside 0..100");
   if (!(o.partial_percent >= 0 && o.partial_percent <= 100)) bad("partial_percent outside 0..100");
   if (o.jitter_ns < 0) bad("jitter must not be negative");
   if (const char* why = can::validate(o.board.ids)) bad(why);
+  for (const SimFault& f : o.faults) check_fault(f, o.period_ns);
   return o;
 }
 
+bool in_window(const SimFault& f, double t_s) noexcept {
+  return t_s >= f.start_s && (f.duration_s <= 0.0 || t_s < f.start_s + f.duration_s);
+}
+
+// Removes frame i from out[0, n), keeping the others' order.
+void erase_frame(SimBoard::Frames& out, int& n, int i) noexcept {
+  for (int m = i; m + 1 < n; ++m) out[u(m)] = out[u(m + 1)];
+  --n;
+}
+
 }  // namespace
+
+// What the scripted faults do to one cycle (SimRig::active_faults).
+struct SimRig::CycleFaults {
+  bool silent = false;
+  bool dropped = false;
+  bool partial = false;
+  bool duplicate = false;
+  bool hold_counts = false;  // kReorder
+  bool bad_seq = false;
+  bool wrong_dlc = false;
+  bool error_frame = false;
+  std::int64_t delay_ns = 0;
+  std::uint8_t errors = 0;
+  std::uint8_t quadrature_joints = 0;  // stuck joints whose heartbeat says quadrature error
+  std::array<bool, kJoints> stuck{};
+  std::uint32_t applied = 0;
+};
 
 SimRig::SimRig(const SimOptions& options)
     : options_(checked(options)),
@@ -330,32 +426,24 @@ SimRig::SimRig(const SimOptions& options)
       encoders_(options.encoders, motion_.position(0.0)),
       board_(options.board),
       base_errors_(options.board.errors) {
-  for (const SimFault& f : options_.faults) {
-    if (f.joint < 0 || f.joint >= kJoints) bad("fault: joint must be 0..5");
-    if (f.start_s < 0.0) bad("fault: start_s must be >= 0");
-    if (f.percent < 0.0 || f.percent > 100.0) bad("fault: percent must be in [0, 100]");
-  }
   options_.jitter_ns = std::min(options_.jitter_ns, (options_.period_ns - 1) / 2);
+}
+
+std::int64_t SimRig::start_cycle(const SimFault& f) const noexcept {
+  return static_cast<std::int64_t>(
+      std::ceil(f.start_s * 1e9 / static_cast<double>(options_.period_ns)));
 }
 
 std::int64_t SimRig::fault_count_offset(int j, double t_s, std::int64_t k) const noexcept {
   std::int64_t offset = 0;
   for (const SimFault& f : options_.faults) {
     if (f.joint != j || t_s < f.start_s) continue;
-    switch (f.kind) {
-      case SimFault::Kind::kCountOffset:
-        offset += f.counts;
-        break;
-      case SimFault::Kind::kCountRamp: {
-        // One count per cycle: k cycles since the start cycle.
-        const auto start_k = static_cast<std::int64_t>(
-            std::ceil(f.start_s * 1e9 / static_cast<double>(options_.period_ns)));
-        const std::int64_t n = std::min<std::int64_t>(k - start_k + 1, std::llabs(f.counts));
-        offset += f.counts >= 0 ? std::max<std::int64_t>(n, 0) : -std::max<std::int64_t>(n, 0);
-        break;
-      }
-      default:
-        break;
+    if (f.kind == SimFault::Kind::kCountOffset) offset += f.counts;
+    if (f.kind == SimFault::Kind::kCountRamp) {
+      // One count per cycle: k cycles since the start cycle.
+      const std::int64_t n =
+          std::clamp<std::int64_t>(k - start_cycle(f) + 1, 0, std::llabs(f.counts));
+      offset += f.counts >= 0 ? n : -n;
     }
   }
   return offset;
@@ -370,7 +458,7 @@ double SimRig::fault_excursion_rad(int j, double t_s) const noexcept {
     const double x = into / f.duration_s;  // 0..1: out the first half, back the second
     const double shape = x < 0.5 ? 2.0 * x : 2.0 * (1.0 - x);
     const auto& e = encoders_.params(j);
-    angle += shape * static_cast<double>(f.counts) * 2.0 * std::numbers::pi /
+    angle += shape * static_cast<double>(f.counts) * kTwoPi /
              (static_cast<double>(e.counts_per_rev) * e.gear_ratio);
   }
   return angle;
@@ -398,14 +486,74 @@ bool SimRig::cycle_partial(std::int64_t k) const noexcept {
              options_.partial_percent;
 }
 
-int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_ns,
-                 std::int64_t wall_offset_ns) noexcept {
-  const std::int64_t t_ns = sample_offset_ns(k);
+SimRig::CycleFaults SimRig::active_faults(std::int64_t k, double t_s) const noexcept {
+  using K = SimFault::Kind;
+  CycleFaults c;
+  c.errors = base_errors_;
+  for (const SimFault& f : options_.faults) {
+    if (!in_window(f, t_s)) continue;
+    const std::int64_t since = k - start_cycle(f);
+    const bool nth = since % f.every == 0;  // every-Nth kinds: this cycle is one
+    switch (f.kind) {
+      case K::kStuck:
+        c.stuck[u(f.joint)] = true;
+        c.errors = static_cast<std::uint8_t>(c.errors | f.error_bits);
+        if ((f.error_bits & can::board_error::kQuadrature) != 0)
+          c.quadrature_joints |= 1U << f.joint;
+        break;
+      case K::kSilence:
+        c.silent = true;
+        break;
+      case K::kDrop:
+        c.dropped =
+            c.dropped ||
+            unit_random(options_.seed, 4, static_cast<std::uint64_t>(k)) * 100.0 < f.percent;
+        break;
+      case K::kPartial:
+        c.partial = true;
+        break;
+      case K::kDuplicate:
+        c.duplicate = c.duplicate || nth;
+        break;
+      case K::kBoardError:
+        c.errors = static_cast<std::uint8_t>(c.errors | f.error_bits);
+        c.applied |= fault_bit(K::kBoardError);
+        break;
+      case K::kReorder:
+        c.hold_counts = c.hold_counts || since % 2 == 0;
+        break;
+      case K::kBadSeq:
+        c.bad_seq = c.bad_seq || nth;
+        break;
+      case K::kWrongDlc:
+        c.wrong_dlc = c.wrong_dlc || nth;
+        break;
+      case K::kDelay:
+        c.delay_ns =
+            std::max(c.delay_ns, static_cast<std::int64_t>(std::llround(f.delay_us * 1e3)));
+        break;
+      case K::kErrorFrame:
+        c.error_frame = c.error_frame || nth;
+        break;
+      default:
+        break;  // count faults and excursions: per joint, elsewhere
+    }
+  }
+  return c;
+}
+
+BoardCycle SimRig::sample_board(double t_s) noexcept {
   // The joints where they really are: the motion plus any scripted excursion.
-  Vec6 theta = motion_.position(static_cast<double>(t_ns) * 1e-9);
-  for (int j = 0; j < kJoints; ++j)
-    theta[u(j)] += fault_excursion_rad(j, static_cast<double>(t_ns) * 1e-9);
+  Vec6 theta = motion_.position(t_s);
+  std::uint32_t excursion = 0;
+  for (int j = 0; j < kJoints; ++j) {
+    const double e = fault_excursion_rad(j, t_s);
+    theta[u(j)] += e;
+    if (e != 0.0) excursion = fault_bit(SimFault::Kind::kExcursion);
+  }
   encoders_.update(theta);
+  cycle_.position = theta;
+  cycle_.applied = excursion;
   BoardCycle c;
   for (int j = 0; j < kJoints; ++j) {
     const auto ch = u(encoders_.params(j).channel);
@@ -415,111 +563,50 @@ int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_
       c.index_count[ch] = encoders_.latched_count(j);
     }
   }
-  // Scripted faults (SimOptions::faults).
-  const double t_s = static_cast<double>(t_ns) * 1e-9;
-  bool silent = false;
-  bool dropped = false;
-  bool partial = false;
-  bool duplicate = false;
-  bool hold_counts = false;
-  bool bad_seq = false;
-  bool wrong_dlc = false;
-  std::uint8_t errors = base_errors_;
-  std::array<bool, kJoints> stuck{};
-  for (const SimFault& f : options_.faults) {
-    const bool active = t_s >= f.start_s && (f.duration_s <= 0.0 || t_s < f.start_s + f.duration_s);
-    if (!active) continue;
-    switch (f.kind) {
-      case SimFault::Kind::kStuck:
-        stuck[u(f.joint)] = true;
-        break;
-      case SimFault::Kind::kSilence:
-        silent = true;
-        break;
-      case SimFault::Kind::kDrop:
-        dropped = dropped ||
-                  unit_random(options_.seed, 4, static_cast<std::uint64_t>(k)) * 100.0 < f.percent;
-        break;
-      case SimFault::Kind::kPartial:
-        partial = true;
-        break;
-      case SimFault::Kind::kDuplicate:
-        duplicate = true;
-        break;
-      case SimFault::Kind::kBoardError:
-        errors = static_cast<std::uint8_t>(errors | f.error_bits);
-        break;
-      case SimFault::Kind::kReorder: {
-        // Cycles start_k, start_k + 2, ...: held back; the cycle after each goes first.
-        const auto start_k = static_cast<std::int64_t>(
-            std::ceil(f.start_s * 1e9 / static_cast<double>(options_.period_ns)));
-        hold_counts = hold_counts || (k - start_k) % 2 == 0;
-        break;
-      }
-      case SimFault::Kind::kBadSeq:
-        bad_seq = true;
-        break;
-      case SimFault::Kind::kWrongDlc:
-        wrong_dlc = true;
-        break;
-      default:
-        break;
-    }
-  }
+  cycle_.count = c.count;
+  return c;
+}
+
+void SimRig::apply_counter_faults(std::int64_t k, double t_s, CycleFaults& f,
+                                  BoardCycle& c) noexcept {
+  std::uint8_t quadrature_channels = 0;
   for (int j = 0; j < kJoints; ++j) {
     const auto ch = u(encoders_.params(j).channel);
     const std::int64_t offset = fault_count_offset(j, t_s, k);
     c.count[ch] += offset;
     c.index_count[ch] += offset;
-    if (stuck[u(j)]) {
+    if (offset != 0) {
+      for (const SimFault& fault : options_.faults) {
+        const bool count_fault =
+            fault.kind == SimFault::Kind::kCountOffset || fault.kind == SimFault::Kind::kCountRamp;
+        if (count_fault && fault.joint == j && t_s >= fault.start_s)
+          f.applied |= fault_bit(fault.kind);
+      }
+    }
+    if (f.stuck[u(j)]) {
       if (!stuck_[u(j)]) stuck_count_[u(j)] = c.count[ch];
       c.count[ch] = stuck_count_[u(j)];
       c.index_latched &= ~(1U << ch);  // a dead channel latches nothing
+      f.applied |= fault_bit(SimFault::Kind::kStuck);
+      if ((f.quadrature_joints & (1U << j)) != 0) quadrature_channels |= 1U << ch;
     }
-    stuck_[u(j)] = stuck[u(j)];
+    stuck_[u(j)] = f.stuck[u(j)];
   }
-  board_.options().errors = errors;
+  board_.options().errors = f.errors;
+  board_.options().channel_quadrature_errors =
+      static_cast<std::uint8_t>(options_.board.channel_quadrature_errors | quadrature_channels);
+}
 
-  int n = board_.make_cycle(k, c, out);
-  if (cycle_lost(k) || silent || dropped) {
-    held_n_ = 0;  // whatever was held back is lost with the cycle
-    return 0;
-  }
+int SimRig::reorder(bool hold, SimBoard::Frames& out, int n) noexcept {
+  // This cycle's count frames wait for the next cycle; the ones held back from
+  // the previous cycle follow this cycle's.
   const std::uint32_t id_a = board_.options().ids.counts_a_id();
   const std::uint32_t id_b = board_.options().ids.counts_b_id();
-  for (int i = 0; i < n; ++i) {
-    can::CanFrame& f = out[u(i)];
-    if (bad_seq && (f.id == id_a || f.id == id_b)) {
-      f.data[7] = static_cast<std::uint8_t>(f.data[7] + 128);
-    }
-    if (wrong_dlc && f.id == id_b) f.dlc = 6;
-  }
-  if (duplicate && n < static_cast<int>(out.size())) {
-    const std::uint32_t a = board_.options().ids.counts_a_id();
-    for (int i = 0; i < n; ++i) {
-      if (out[u(i)].id == a) {
-        for (int m = n; m > i + 1; --m) out[u(m)] = out[u(m - 1)];
-        out[u(i + 1)] = out[u(i)];
-        ++n;
-        break;
-      }
-    }
-  }
-  if (cycle_partial(k) || partial) {  // drop COUNTS_B
-    const std::uint32_t b = board_.options().ids.counts_b_id();
-    int w = 0;
-    for (int i = 0; i < n; ++i) {
-      if (out[u(i)].id != b) out[u(w++)] = out[u(i)];
-    }
-    n = w;
-  }
-  // kReorder: this cycle's count frames wait for the next cycle; the ones
-  // held back from the previous cycle follow this cycle's.
   std::array<can::CanFrame, 2> late{};
   const int late_n = held_n_;
   for (int i = 0; i < late_n; ++i) late[u(i)] = held_[u(i)];
   held_n_ = 0;
-  if (hold_counts) {
+  if (hold) {
     int w = 0;
     for (int i = 0; i < n; ++i) {
       const can::CanFrame& f = out[u(i)];
@@ -532,21 +619,93 @@ int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_
     n = w;
   }
   for (int i = 0; i < late_n && n < static_cast<int>(out.size()); ++i) out[u(n++)] = late[u(i)];
-  const std::int64_t mono = start_mono_ns + t_ns;
+  return n;
+}
+
+int SimRig::apply_bus_faults(std::int64_t k, CycleFaults& f, SimBoard::Frames& out,
+                             int n) noexcept {
+  using K = SimFault::Kind;
+  const bool lost = cycle_lost(k);
+  if (lost || f.silent || f.dropped) {
+    held_n_ = 0;  // whatever was held back is lost with the cycle
+    f.applied |= (lost ? kRandomLossBit : 0U) | (f.silent ? fault_bit(K::kSilence) : 0U) |
+                 (f.dropped ? fault_bit(K::kDrop) : 0U);
+    return 0;
+  }
+  const std::uint32_t id_a = board_.options().ids.counts_a_id();
+  const std::uint32_t id_b = board_.options().ids.counts_b_id();
+  const bool partial = f.partial || cycle_partial(k);
+  for (int i = n - 1; i >= 0; --i) {
+    can::CanFrame& fr = out[u(i)];
+    if (f.bad_seq && (fr.id == id_a || fr.id == id_b))
+      fr.data[7] = static_cast<std::uint8_t>(fr.data[7] + 128);
+    if (f.wrong_dlc && fr.id == id_b) fr.dlc = 6;
+    if (partial && fr.id == id_b) erase_frame(out, n, i);
+    if (f.duplicate && fr.id == id_a && n < static_cast<int>(out.size())) {
+      for (int m = n; m > i; --m) out[u(m)] = out[u(m - 1)];  // out[i + 1] = the copy
+      ++n;
+    }
+  }
+  n = reorder(f.hold_counts, out, n);
+  if (f.error_frame) {
+    can::ErrorPayload e;
+    e.classes = can::err_class::kProt | can::err_class::kBusError;
+    e.protocol_type = can::err_prot::kBit;
+    out[u(n++)] = can::encode_error(e);
+  }
+  f.applied |=
+      (f.partial ? fault_bit(K::kPartial) : 0U) | (cycle_partial(k) ? kRandomPartialBit : 0U) |
+      (f.duplicate ? fault_bit(K::kDuplicate) : 0U) |
+      (f.hold_counts ? fault_bit(K::kReorder) : 0U) | (f.bad_seq ? fault_bit(K::kBadSeq) : 0U) |
+      (f.wrong_dlc ? fault_bit(K::kWrongDlc) : 0U) |
+      (f.error_frame ? fault_bit(K::kErrorFrame) : 0U) |
+      (f.delay_ns > 0 ? fault_bit(K::kDelay) : 0U);
+  return n;
+}
+
+int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_ns,
+                 std::int64_t wall_offset_ns) noexcept {
+  const std::int64_t t_ns = sample_offset_ns(k);
+  const double t_s = static_cast<double>(t_ns) * 1e-9;
+  BoardCycle c = sample_board(t_s);
+  CycleFaults f = active_faults(k, t_s);
+  f.applied |= cycle_.applied;
+  apply_counter_faults(k, t_s, f, c);
+  const int made = board_.make_cycle(k, c, out);
+  const int n = apply_bus_faults(k, f, out, made);
+  const std::int64_t mono = start_mono_ns + t_ns + f.delay_ns;
   for (int i = 0; i < n; ++i) {
     out[u(i)].mono_ns = mono;
     out[u(i)].wall_ns = mono + wall_offset_ns;
+  }
+  cycle_.k = k;
+  cycle_.t_s = t_s;
+  cycle_.applied = f.applied;
+  for (std::size_t b = 0; b < applied_.size(); ++b) {
+    if ((f.applied & (1U << b)) != 0) ++applied_[b];
   }
   return n;
 }
 
 std::span<const SimFaultName> sim_fault_names() noexcept {
   using K = SimFault::Kind;
+  namespace p = fault_param;
   static constexpr SimFaultName kNames[] = {
-      {K::kCountOffset, "glitch"}, {K::kCountRamp, "lost_counts"}, {K::kExcursion, "excursion"},
-      {K::kStuck, "stuck"},        {K::kSilence, "silence"},       {K::kDrop, "drop"},
-      {K::kPartial, "partial"},    {K::kDuplicate, "duplicate"},   {K::kBoardError, "board_error"},
-      {K::kReorder, "reorder"},    {K::kBadSeq, "bad_seq"},        {K::kWrongDlc, "wrong_dlc"},
+      {K::kCountOffset, "glitch", p::kJoint | p::kCounts},
+      {K::kCountRamp, "lost_counts", p::kJoint | p::kCounts},
+      {K::kExcursion, "excursion", p::kJoint | p::kCounts},
+      {K::kStuck, "stuck", p::kJoint | p::kErrorBits},
+      {K::kSilence, "silence"},
+      {K::kDrop, "drop", p::kPercent},
+      {K::kPartial, "partial"},
+      {K::kDuplicate, "duplicate", p::kEvery},
+      {K::kBoardError, "board_error", p::kErrorBits},
+      {K::kReorder, "reorder"},
+      {K::kBadSeq, "bad_seq", p::kEvery},
+      {K::kWrongDlc, "wrong_dlc", p::kEvery},
+      {K::kDelay, "delay", p::kDelay},
+      {K::kErrorFrame, "error_frame", p::kEvery},
+      {K::kStall, "stall"},
   };
   return kNames;
 }
@@ -556,6 +715,13 @@ std::string_view sim_fault_name(SimFault::Kind kind) noexcept {
     if (n.kind == kind) return n.name;
   }
   return "?";
+}
+
+const SimFaultName* find_sim_fault(std::string_view name) noexcept {
+  for (const SimFaultName& n : sim_fault_names()) {
+    if (n.name == name) return &n;
+  }
+  return nullptr;
 }
 
 }  // namespace exodaq::drivers::sim

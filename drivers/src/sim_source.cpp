@@ -2,6 +2,10 @@
 
 #include <time.h>
 
+#include <cerrno>
+#include <cmath>
+#include <stdexcept>
+
 namespace exodaq::drivers {
 namespace {
 
@@ -17,19 +21,60 @@ BoardDecoderConfig decoder_config(const SimOptions& o) {
   return c;
 }
 
+void sleep_for_s(double seconds) noexcept {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(seconds);
+  ts.tv_nsec = static_cast<long>((seconds - std::floor(seconds)) * 1e9);
+  while (nanosleep(&ts, &ts) != 0 && errno == EINTR) {
+  }
+}
+
 }  // namespace
 
 SimSource::SimSource(const SimOptions& options)
-    : options_(options), rig_(options), decoder_(decoder_config(options)) {}
+    : options_(options), rig_(options), decoder_(decoder_config(options)) {
+  for (const sim::SimFault& f : options_.faults) {
+    if (f.kind == sim::SimFault::Kind::kStall && !(f.duration_s > 0.0))
+      throw std::invalid_argument("sim: a stall fault needs a duration (for_s > 0)");
+  }
+}
 
 void SimSource::start() {
   rig_ = sim::SimRig(options_);  // rewind the encoders to power-up
   decoder_.reset();
+  pending_n_ = 0;
   cycle_ = 0;
+  last_read_s_ = -1.0;
   const std::int64_t mono = now_ns(CLOCK_MONOTONIC);
   start_mono_ns_ = options_.start_mono_ns != 0 ? options_.start_mono_ns : mono;
   wall_offset_ns_ =
       options_.wall_offset_ns != 0 ? options_.wall_offset_ns : now_ns(CLOCK_REALTIME) - mono;
+}
+
+void SimSource::queue_frames(int n) noexcept {
+  for (int i = 0; i < n; ++i) {
+    const can::CanFrame& f = frames_[static_cast<std::size_t>(i)];
+    if (pending_n_ == kPendingCapacity) {  // cannot happen (delays < kMaxDelayPeriods)
+      decoder_.on_frame(f);
+      continue;
+    }
+    int at = pending_n_++;  // keep bus order: by stamp, stable
+    for (; at > 0 && pending_[static_cast<std::size_t>(at - 1)].mono_ns > f.mono_ns; --at) {
+      pending_[static_cast<std::size_t>(at)] = pending_[static_cast<std::size_t>(at - 1)];
+    }
+    pending_[static_cast<std::size_t>(at)] = f;
+  }
+}
+
+void SimSource::feed_arrived(std::int64_t until_mono_ns) noexcept {
+  int fed = 0;
+  while (fed < pending_n_ && pending_[static_cast<std::size_t>(fed)].mono_ns <= until_mono_ns) {
+    decoder_.on_frame(pending_[static_cast<std::size_t>(fed++)]);
+  }
+  for (int i = fed; i < pending_n_; ++i) {
+    pending_[static_cast<std::size_t>(i - fed)] = pending_[static_cast<std::size_t>(i)];
+  }
+  pending_n_ -= fed;
 }
 
 ReadStatus SimSource::read(const CycleTime& time, EncoderSample& out) noexcept {
@@ -44,12 +89,22 @@ ReadStatus SimSource::read(const CycleTime& time, EncoderSample& out) noexcept {
     start_mono_ns_ = time.deadline_mono_ns - k * options_.period_ns;
   }
   cycle_ = k + 1;
-  const int n = rig_.step(k, frames_, start_mono_ns_, wall_offset_ns_);
-  for (int i = 0; i < n; ++i) decoder_.on_frame(frames_[static_cast<std::size_t>(i)]);
-  if (decoder_.poll_sample(out) || decoder_.flush(out)) return ReadStatus::kSample;
+  stall_if_due(rig_.sample_time_s(k));
+  queue_frames(rig_.step(k, frames_, start_mono_ns_, wall_offset_ns_));
+  // The reader waits half a period for the cycle (jitter stays below that).
+  feed_arrived(start_mono_ns_ + k * options_.period_ns + options_.period_ns / 2);
+  if (decoder_.poll_newest(out) >= 0 || decoder_.flush(out)) return ReadStatus::kSample;
   const std::int64_t mono = start_mono_ns_ + rig_.sample_offset_ns(k);
   decoder_.make_missing(out, mono, mono + wall_offset_ns_);
   return ReadStatus::kNoSample;
+}
+
+void SimSource::stall_if_due(double t_s) noexcept {
+  for (const sim::SimFault& f : options_.faults) {
+    if (f.kind == sim::SimFault::Kind::kStall && last_read_s_ < f.start_s && t_s >= f.start_s)
+      sleep_for_s(f.duration_s);
+  }
+  last_read_s_ = t_s;
 }
 
 }  // namespace exodaq::drivers

@@ -1,5 +1,6 @@
 #include "exodaq/drivers/socketcan_source.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -10,27 +11,9 @@
 namespace exodaq::drivers {
 namespace {
 
-constexpr std::uint32_t kEventFlags = sample_flag::kSeqGap | sample_flag::kDuplicate |
-                                      sample_flag::kOutOfOrder | sample_flag::kBusError;
-
 // Errors that mean the interface is gone or down: close and retry later.
 bool is_interface_loss(int err) noexcept {
   return err == ENETDOWN || err == ENODEV || err == ENXIO || err == ENETUNREACH || err == EBADF;
-}
-
-// `older` is superseded by `newer`: keep its events and index latches.
-void merge_older(const EncoderSample& older, EncoderSample& newer) noexcept {
-  newer.flags |= older.flags & kEventFlags;
-  for (int c = 0; c < kChannelCount; ++c) {
-    const std::uint32_t bit = 1U << c;
-    if ((older.index_latched & bit) == 0 || (newer.index_latched & bit) != 0) continue;
-    newer.index_latched |= bit;
-    if ((older.index_count_valid & bit) != 0 && (newer.index_count_valid & bit) == 0) {
-      newer.index_count_valid |= bit;
-      newer.index_count16[static_cast<std::size_t>(c)] =
-          older.index_count16[static_cast<std::size_t>(c)];
-    }
-  }
 }
 
 }  // namespace
@@ -168,52 +151,35 @@ bool SocketCanSource::have_current(std::int64_t sync_mono) const noexcept {
 }
 
 bool SocketCanSource::take_newest(EncoderSample& out) noexcept {
-  if (!decoder_.poll_sample(out)) return false;
-  while (decoder_.poll_sample(scratch_)) {
-    merge_older(out, scratch_);
-    out = scratch_;
-    ++detail_.superseded_samples;
-  }
+  const int superseded = decoder_.poll_newest(out);
+  if (superseded < 0) return false;
+  detail_.superseded_samples += superseded;
   return true;
 }
 
-ReadStatus SocketCanSource::read(const CycleTime& time, EncoderSample& out) noexcept {
-  const std::int64_t start = time.deadline_mono_ns;
-  const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
-  std::int64_t poll_deadline = start + config_.read_deadline_ns;
-  const std::int64_t cycle_cap = start + period - period / 10;
-  if (poll_deadline > cycle_cap) poll_deadline = cycle_cap;
-
-  measure_offset();
-  std::int64_t now = port_->now_mono_ns();
-  if (!up_ && !try_open(now)) {
-    decoder_.make_missing(out, start, start + offset_ns_);
-    return ReadStatus::kNoSample;
+std::int64_t SocketCanSource::send_sync(std::int64_t now) noexcept {
+  if (!config_.sync_master) return 0;
+  const int r = port_->send(can::encode_sync(config_.port.ids));
+  if (r == 0) {
+    ++detail_.sync_sent;
+  } else if (is_interface_loss(-r)) {
+    go_down(-r);
+  } else {
+    ++detail_.sync_send_failures;  // EAGAIN / ENOBUFS: TX queue full, never waited for
+    detail_.last_errno = -r;
   }
+  return now;
+}
 
-  std::int64_t sync_mono = 0;
-  if (config_.sync_master) {
-    sync_mono = now;
-    const int r = port_->send(can::encode_sync(config_.port.ids));
-    if (r == 0) {
-      ++detail_.sync_sent;
-    } else if (is_interface_loss(-r)) {
-      go_down(-r);
-    } else {
-      ++detail_.sync_send_failures;  // EAGAIN / ENOBUFS: TX queue full, never waited for
-      detail_.last_errno = -r;
-    }
-  }
-
+void SocketCanSource::receive_until(std::int64_t poll_deadline, std::int64_t sync_mono) noexcept {
   while (up_) {
-    if (!drain()) break;
-    if (have_current(sync_mono)) break;
-    now = port_->now_mono_ns();
-    if (now >= poll_deadline) break;
+    if (!drain()) return;
+    if (have_current(sync_mono)) return;
+    if (port_->now_mono_ns() >= poll_deadline) return;
     const int r = port_->wait_readable(poll_deadline);
     if (r == 0) {
-      if (!drain()) break;  // a frame may have slipped in at the deadline
-      break;
+      drain();  // a frame may have slipped in at the deadline
+      return;
     }
     if (r < 0) {
       if (r == -EINTR) continue;
@@ -223,37 +189,51 @@ ReadStatus SocketCanSource::read(const CycleTime& time, EncoderSample& out) noex
         ++detail_.receive_errors;
         detail_.last_errno = -r;
       }
-      break;
+      return;
     }
   }
+}
 
-  const bool got = take_newest(out);
-  if (decoder_.has_partial()) {
-    bool flush = false;
-    if (config_.sync_master) {
-      // Only one half answered this cycle's SYNC by the deadline.
-      flush = !got || newest_complete_mono_ < sync_mono;
-    } else {
-      // Free-running: the other half is overdue by now.
-      flush = port_->now_mono_ns() - partial_since_mono_ > period / 2;
-    }
-    if (flush) {
-      if (got) {
-        if (decoder_.flush(scratch_)) {
-          merge_older(out, scratch_);
-          out = scratch_;
-          ++detail_.superseded_samples;
-          ++detail_.partial_flushes;
-        }
-        return ReadStatus::kSample;
-      }
-      if (decoder_.flush(out)) {
-        ++detail_.partial_flushes;
-        return ReadStatus::kSample;
-      }
-    }
+bool SocketCanSource::flush_partial(bool got, std::int64_t sync_mono, std::int64_t period,
+                                    EncoderSample& out) noexcept {
+  if (!decoder_.has_partial()) return false;
+  const bool flush = config_.sync_master
+                         // Only one half answered this cycle's SYNC by the deadline.
+                         ? !got || newest_complete_mono_ < sync_mono
+                         // Free-running: the other half is overdue by now.
+                         : port_->now_mono_ns() - partial_since_mono_ > period / 2;
+  if (!flush) return false;
+  if (!got) {
+    if (!decoder_.flush(out)) return false;
+    ++detail_.partial_flushes;
+    return true;
   }
-  if (got) return ReadStatus::kSample;
+  if (decoder_.flush(scratch_)) {
+    merge_superseded(out, scratch_);
+    out = scratch_;
+    ++detail_.superseded_samples;
+    ++detail_.partial_flushes;
+  }
+  return true;
+}
+
+ReadStatus SocketCanSource::read(const CycleTime& time, EncoderSample& out) noexcept {
+  const std::int64_t start = time.deadline_mono_ns;
+  const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
+  // Wait for the cycle until the read deadline, never past the end of the
+  // cycle minus a guard of a tenth of the period.
+  const std::int64_t poll_deadline =
+      std::min(start + config_.read_deadline_ns, start + period - period / 10);
+  measure_offset();
+  const std::int64_t now = port_->now_mono_ns();
+  if (!up_ && !try_open(now)) {
+    decoder_.make_missing(out, start, start + offset_ns_);
+    return ReadStatus::kNoSample;
+  }
+  const std::int64_t sync_mono = send_sync(now);
+  receive_until(poll_deadline, sync_mono);
+  const bool got = take_newest(out);
+  if (flush_partial(got, sync_mono, period, out) || got) return ReadStatus::kSample;
   decoder_.make_missing(out, start, start + offset_ns_);
   return ReadStatus::kNoSample;
 }

@@ -1,12 +1,13 @@
 #include "exodaq/messages/lcm_log.hpp"
 
-#include <stdio_ext.h>
+#include <fcntl.h>
 #include <sys/stat.h>
-
 #include <unistd.h>
 
-#include <array>
+#include <algorithm>
+#include <bit>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
 #include "exodaq/common/files.hpp"
@@ -18,24 +19,46 @@ namespace {
 constexpr std::size_t kHeaderBytes = 28;
 constexpr std::uint32_t kMaxChannelBytes = 1024;
 constexpr std::uint32_t kMaxDataBytes = 64U << 20;  // larger than any LCM datagram can carry
+// What the reader and the writer move per system call: large enough that the
+// per-call costs vanish (4 KiB writes, stdio's default here, cost the kernel
+// about four times as much per byte on ext4), small enough to stay in cache.
+constexpr std::size_t kChunkBytes = 256 * 1024;
+
+// Big-endian fields, the event header's byte order: one load or store each.
+template <typename T>
+T from_big_endian(const unsigned char* p) noexcept {
+  T v;
+  std::memcpy(&v, p, sizeof v);
+  if constexpr (std::endian::native == std::endian::little) {
+    if constexpr (sizeof(T) == 4) v = __builtin_bswap32(v);
+    if constexpr (sizeof(T) == 8) v = __builtin_bswap64(v);
+  }
+  return v;
+}
+
+template <typename T>
+void to_big_endian(unsigned char* p, T v) noexcept {
+  if constexpr (std::endian::native == std::endian::little) {
+    if constexpr (sizeof(T) == 4) v = __builtin_bswap32(v);
+    if constexpr (sizeof(T) == 8) v = __builtin_bswap64(v);
+  }
+  std::memcpy(p, &v, sizeof v);
+}
 
 std::uint32_t be32(const unsigned char* p) noexcept {
-  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) |
-         std::uint32_t{p[3]};
+  return from_big_endian<std::uint32_t>(p);
 }
 
 std::int64_t be64(const unsigned char* p) noexcept {
-  return static_cast<std::int64_t>((std::uint64_t{be32(p)} << 32) | be32(p + 4));
+  return static_cast<std::int64_t>(from_big_endian<std::uint64_t>(p));
 }
 
 void put32(unsigned char* p, std::uint32_t v) noexcept {
-  for (int i = 0; i < 4; ++i) p[i] = static_cast<unsigned char>(v >> (24 - 8 * i));
+  to_big_endian(p, v);
 }
 
 void put64(unsigned char* p, std::int64_t v) noexcept {
-  const auto u = static_cast<std::uint64_t>(v);
-  put32(p, static_cast<std::uint32_t>(u >> 32));
-  put32(p + 4, static_cast<std::uint32_t>(u));
+  to_big_endian(p, static_cast<std::uint64_t>(v));
 }
 
 std::string hex_bytes(const unsigned char* p, std::size_t n) {
@@ -62,68 +85,95 @@ LogError::LogError(const std::string& file, std::int64_t offset, const std::stri
 
 LogReader::LogReader(const std::string& path) : path_(path) {
   files::InputInfo info;
-  int fd = -1;
   try {
-    fd = files::open_input(path, -1, &info);  // no size limit: read as a stream
+    // A regular file, checked before reading (a FIFO does not block); no
+    // size limit: the log is read as a stream.
+    fd_ = files::open_input(path, -1, &info);
   } catch (const files::FileError& e) {
     throw LogError(path, -1, e.reason());
   }
-  f_ = ::fdopen(fd, "rb");
-  if (f_ == nullptr) {
-    const int e = errno;
-    ::close(fd);
-    throw LogError(path, -1, errno_text(e));
-  }
-  __fsetlocking(f_, FSETLOCKING_BYCALLER);
   size_ = info.size;
-  if (size_ == 0) {
-    std::fclose(f_);
-    throw LogError(path, -1, "empty file, not an LCM log");
+  try {
+    if (size_ == 0) throw LogError(path, -1, "empty file, not an LCM log");
+    buffer_.resize(kChunkBytes);
+    const auto first = static_cast<std::size_t>(std::min<std::int64_t>(size_, 8));
+    const std::size_t n = fill(0, first) ? first : std::min(window_bytes_, first);
+    if (n < 4 || be32(buffer_.data()) != kLcmLogMagic) {
+      throw LogError(path, -1, "not an LCM log (first bytes " + hex_bytes(buffer_.data(), n) + ")");
+    }
+  } catch (...) {
+    ::close(fd_);
+    throw;
   }
-  std::array<unsigned char, 8> first{};
-  const std::size_t n = std::fread(first.data(), 1, first.size(), f_);
-  if (n < 4 || be32(first.data()) != kLcmLogMagic) {
-    std::fclose(f_);
-    throw LogError(path, -1, "not an LCM log (first bytes " + hex_bytes(first.data(), n) + ")");
-  }
-  std::rewind(f_);
-  tell_ = 0;
 }
 
 LogReader::~LogReader() {
-  if (f_ != nullptr) std::fclose(f_);
+  if (fd_ >= 0) ::close(fd_);
 }
 
-bool LogReader::read_header(std::int64_t at) {
-  std::array<unsigned char, kHeaderBytes> h{};
-  if (at != tell_) {
-    tell_ = -1;
-    if (std::fseek(f_, static_cast<long>(at), SEEK_SET) != 0) return false;
-    tell_ = at;
+// Makes bytes [at, at + bytes) of the file available in the window, reading
+// whole chunks. False when they are not all in the file (past the size it
+// had when opened, or it has shrunk since: then the new end is the end).
+// Throws LogError on a read error.
+bool LogReader::fill(std::int64_t at, std::size_t bytes) {
+  const std::int64_t window_end = window_at_ + static_cast<std::int64_t>(window_bytes_);
+  if (at >= window_at_ && at + static_cast<std::int64_t>(bytes) <= window_end) return true;
+  if (at < 0 || at + static_cast<std::int64_t>(bytes) > size_) return false;
+  // Keep what the window already holds from `at` on.
+  std::size_t kept = 0;
+  if (at >= window_at_ && at < window_end) {
+    kept = static_cast<std::size_t>(window_end - at);
+    std::memmove(buffer_.data(), buffer_.data() + (at - window_at_), kept);
   }
-  tell_ = -1;  // unknown until the whole event has been read
-  if (std::fread(h.data(), 1, h.size(), f_) != h.size()) return false;
-  if (be32(h.data()) != kLcmLogMagic) return false;
-  const std::uint32_t channel_len = be32(h.data() + 20);
-  const std::uint32_t data_len = be32(h.data() + 24);
-  if (channel_len == 0 || channel_len > kMaxChannelBytes || data_len > kMaxDataBytes) return false;
-  if (at + static_cast<std::int64_t>(kHeaderBytes + channel_len + data_len) > size_) return false;
-  channel_.resize(channel_len);
-  data_.resize(data_len);
-  if (std::fread(channel_.data(), 1, channel_len, f_) != channel_len) return false;
-  if (data_len > 0 && std::fread(data_.data(), 1, data_len, f_) != data_len) return false;
-  number_ = be64(h.data() + 4);
-  timestamp_ = be64(h.data() + 12);
-  pos_ = at + static_cast<std::int64_t>(kHeaderBytes + channel_len + data_len);
-  tell_ = pos_;
+  if (bytes > buffer_.size()) {
+    buffer_.resize(bytes);  // one event larger than a chunk
+  } else if (buffer_.size() > kChunkBytes && std::max(bytes, kept) <= kChunkBytes) {
+    std::vector<std::uint8_t>(buffer_.data(), buffer_.data() + kChunkBytes).swap(buffer_);
+  }
+  window_at_ = at;
+  window_bytes_ = kept;
+  while (window_bytes_ < bytes) {
+    const std::int64_t from = at + static_cast<std::int64_t>(window_bytes_);
+    const auto want = static_cast<std::size_t>(std::min<std::int64_t>(
+        static_cast<std::int64_t>(buffer_.size() - window_bytes_), size_ - from));
+    const ssize_t n = ::pread(fd_, buffer_.data() + window_bytes_, want, from);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw LogError(path_, from, "read error: " + errno_text(errno));
+    if (n == 0) {
+      size_ = from;  // the file has shrunk since it was opened: it ends here now
+      return false;
+    }
+    window_bytes_ += static_cast<std::size_t>(n);
+  }
   return true;
 }
 
-// Finds the next offset >= from where a whole event header reads; records the
+// The event whose header starts at `at`, if one whole event reads there.
+bool LogReader::read_event(std::int64_t at, LogEvent& out) {
+  if (!fill(at, kHeaderBytes)) return false;
+  const unsigned char* h = buffer_.data() + (at - window_at_);
+  if (be32(h) != kLcmLogMagic) return false;
+  const std::uint32_t channel_len = be32(h + 20);
+  const std::uint32_t data_len = be32(h + 24);
+  if (channel_len == 0 || channel_len > kMaxChannelBytes || data_len > kMaxDataBytes) return false;
+  const std::size_t bytes = kHeaderBytes + channel_len + data_len;
+  if (at + static_cast<std::int64_t>(bytes) > size_ || !fill(at, bytes)) return false;
+  h = buffer_.data() + (at - window_at_);  // the window may have moved
+  out.number = be64(h + 4);
+  out.timestamp = be64(h + 12);
+  out.offset = at;
+  out.channel = std::string_view(reinterpret_cast<const char*>(h + kHeaderBytes), channel_len);
+  out.data = h + kHeaderBytes + channel_len;
+  out.size = data_len;
+  pos_ = at + static_cast<std::int64_t>(bytes);
+  return true;
+}
+
+// Finds the next offset > from where a whole event reads; records the
 // skipped stretch as damage. False: nothing readable up to the end.
-bool LogReader::resync(std::int64_t from) {
+bool LogReader::resync(std::int64_t from, LogEvent& out) {
   for (std::int64_t at = from + 1; at + static_cast<std::int64_t>(kHeaderBytes) <= size_; ++at) {
-    if (read_header(at)) {
+    if (read_event(at, out)) {
       damage_.push_back({from, at, events_});
       return true;
     }
@@ -136,16 +186,7 @@ bool LogReader::resync(std::int64_t from) {
 bool LogReader::next(LogEvent& out) {
   if (pos_ >= size_) return false;
   const std::int64_t at = pos_;
-  if (!read_header(at)) {
-    if (std::ferror(f_)) throw LogError(path_, at, "read error: " + errno_text(errno));
-    if (!resync(at)) return false;
-  }
-  out.number = number_;
-  out.timestamp = timestamp_;
-  out.offset = pos_ - static_cast<std::int64_t>(kHeaderBytes + channel_.size() + data_.size());
-  out.channel = channel_;
-  out.data = data_.data();
-  out.size = data_.size();
+  if (!read_event(at, out) && !resync(at, out)) return false;
   ++events_;
   return true;
 }
@@ -170,35 +211,57 @@ LogWriter::LogWriter(const std::string& path, const std::vector<std::string>& in
   } catch (const files::FileError& e) {
     throw LogError(path, -1, e.reason());
   }
+  buffer_.resize(kChunkBytes);
 }
 
 LogWriter::~LogWriter() = default;  // an OutputFile not committed leaves nothing behind
 
-void LogWriter::write(std::string_view channel, std::int64_t timestamp_us, const void* data,
-                      std::size_t size) {
-  if (!out_) throw LogError(path_, -1, "write after close");
-  if (channel.empty() || channel.size() > kMaxChannelBytes || size > kMaxDataBytes) {
-    throw LogError(path_, -1, "event too large or without a channel");
-  }
-  std::array<unsigned char, kHeaderBytes> h{};
-  put32(h.data(), kLcmLogMagic);
-  put64(h.data() + 4, number_);
-  put64(h.data() + 12, timestamp_us);
-  put32(h.data() + 20, static_cast<std::uint32_t>(channel.size()));
-  put32(h.data() + 24, static_cast<std::uint32_t>(size));
+void LogWriter::write_all(const void* data, std::size_t size) {
   try {
-    out_->write(h.data(), h.size());
-    out_->write(channel);
-    if (size > 0) out_->write(data, size);
+    out_->write(data, size);  // chunks this large go straight to the file
   } catch (const files::FileError& e) {
     out_.reset();
     throw LogError(path_, -1, e.reason());
+  }
+}
+
+void LogWriter::flush() {
+  if (buffered_ == 0) return;
+  write_all(buffer_.data(), buffered_);
+  buffered_ = 0;
+}
+
+void LogWriter::write(std::string_view channel, std::int64_t timestamp_us, const void* data,
+                      std::size_t size) {
+  if (!out_) throw LogError(path_, -1, "write after close or a failed write");
+  if (channel.empty() || channel.size() > kMaxChannelBytes || size > kMaxDataBytes) {
+    throw LogError(path_, -1, "event too large or without a channel");
+  }
+  const std::size_t head = kHeaderBytes + channel.size();
+  // An event larger than the buffer: its data is written straight from the caller's.
+  const bool direct = head + size > buffer_.size();
+  if (buffered_ + (direct ? head : head + size) > buffer_.size()) flush();
+  unsigned char* h = buffer_.data() + buffered_;
+  put32(h, kLcmLogMagic);
+  put64(h + 4, number_);
+  put64(h + 12, timestamp_us);
+  put32(h + 20, static_cast<std::uint32_t>(channel.size()));
+  put32(h + 24, static_cast<std::uint32_t>(size));
+  std::memcpy(h + kHeaderBytes, channel.data(), channel.size());
+  buffered_ += head;
+  if (direct) {
+    flush();
+    write_all(data, size);
+  } else if (size > 0) {
+    std::memcpy(h + head, data, size);
+    buffered_ += size;
   }
   ++number_;
 }
 
 void LogWriter::close() {
   if (!out_) return;
+  flush();
   try {
     out_->commit();
   } catch (const files::FileError& e) {
@@ -209,11 +272,22 @@ void LogWriter::close() {
 }
 
 std::map<std::string, std::int64_t> scan_channels(const std::string& path) {
-  std::map<std::string, std::int64_t> channels;
+  std::map<std::string, std::int64_t, std::less<>> channels;
   LogReader reader(path);
   LogEvent ev;
-  while (reader.next(ev)) ++channels[std::string(ev.channel)];
-  return channels;
+  // Logs hold a few channels, mostly in runs: count against the last one seen.
+  std::string_view last;
+  std::int64_t* last_count = nullptr;
+  while (reader.next(ev)) {
+    if (last_count == nullptr || ev.channel != last) {
+      auto it = channels.find(ev.channel);
+      if (it == channels.end()) it = channels.emplace(std::string(ev.channel), 0).first;
+      last = it->first;
+      last_count = &it->second;
+    }
+    ++*last_count;
+  }
+  return {channels.begin(), channels.end()};
 }
 
 std::vector<OwnedEvent> read_log(const std::string& path) {

@@ -70,96 +70,114 @@ kin::Pose read_pose(MapReader& parent, const std::string& key, const Units& u) {
   return pose;
 }
 
-KinematicModel read_model(const YAML::Node& root, const std::string& file) {
-  MapReader top(file, root, "model");
-  KinematicModel model;
-  model.file = file;
-  model.name = top.string("name");
-  model.description = top.string_or("description", "");
+kin::Convention read_convention(MapReader& top, std::string& name) {
+  name = top.choice("convention", {"standard_dh", "modified_dh", "poe"});
+  return name == "standard_dh"   ? kin::Convention::kStandardDh
+         : name == "modified_dh" ? kin::Convention::kModifiedDh
+                                 : kin::Convention::kProductOfExponentials;
+}
 
-  const std::string conv = top.choice("convention", {"standard_dh", "modified_dh", "poe"});
-  const kin::Convention convention = conv == "standard_dh" ? kin::Convention::kStandardDh
-                                     : conv == "modified_dh"
-                                         ? kin::Convention::kModifiedDh
-                                         : kin::Convention::kProductOfExponentials;
-  const bool poe = convention == kin::Convention::kProductOfExponentials;
+Units read_units(MapReader& top) {
   Units u;
   u.angle_name = top.choice("angle_unit", {"deg", "rad"});
   u.angle = u.angle_name == "deg" ? kDegToRad : 1.0;
   u.length = top.choice_or("length_unit", {"m", "mm"}, "m") == "mm" ? 1e-3 : 1.0;
+  return u;
+}
 
-  const YAML::Node jnode = top.child("joints");
+void read_screw(MapReader& j, const Units& u, kin::JointDescription& d) {
+  MapReader s = j.map("screw");
+  const auto w = s.numbers_fixed<3>("omega");
+  const auto q = s.numbers_fixed<3>("q");
+  const Eigen::Vector3d omega(w[0], w[1], w[2]);
+  if (!(omega.norm() > 1e-9)) {
+    s.fail_key("omega", "joint '" + d.name + "': screw axis 'omega' has zero length");
+  }
+  d.screw.omega = omega.normalized();
+  d.screw.q = Eigen::Vector3d(q[0], q[1], q[2]) * u.length;
+  s.finish();
+  d.dh.theta_offset = j.number_or("offset", 0.0) * u.angle;
+}
+
+void read_dh(MapReader& j, const Units& u, kin::JointDescription& d) {
+  MapReader h = j.map("dh");
+  d.dh.a = h.number("a") * u.length;
+  d.dh.alpha = h.number("alpha") * u.angle;
+  d.dh.d = h.number("d") * u.length;
+  d.dh.theta_offset = h.number_or("theta_offset", 0.0) * u.angle;
+  h.finish();
+}
+
+kin::JointDescription read_joint(MapReader& j, const Units& u, bool poe,
+                                 std::set<std::string>& names) {
+  kin::JointDescription d;
+  d.name = j.string("name");
+  if (d.name.empty()) j.fail_key("name", "joint name in " + j.context() + " is empty");
+  if (!names.insert(d.name).second) j.fail_key("name", "duplicate joint name '" + d.name + "'");
+  const auto lim = j.numbers_fixed<2>("limits");
+  if (!(lim[0] < lim[1])) {
+    j.fail_key("limits", "joint '" + d.name + "' limits reversed: lower " + fmt(lim[0]) +
+                             " must be below upper " + fmt(lim[1]));
+  }
+  d.limits.lower = lim[0] * u.angle;
+  d.limits.upper = lim[1] * u.angle;
+  if (poe) {
+    read_screw(j, u, d);
+  } else {
+    read_dh(j, u, d);
+  }
+  j.finish();
+  return d;
+}
+
+struct Joints {
+  std::vector<kin::JointDescription> list;
+  std::vector<int> lines;  // where each joint is written
+  YAML::Node node;
+};
+
+Joints read_joints(MapReader& top, const Units& u, bool poe) {
+  Joints out;
+  out.node = top.child("joints");
+  const YAML::Node& jnode = out.node;
   if (!jnode.IsSequence()) top.fail(jnode, "'joints' must be a list of joints");
   if (jnode.size() == 0) top.fail(jnode, "'joints' is empty: a model needs at least one joint");
   if (jnode.size() > static_cast<std::size_t>(kin::kMaxJoints)) {
     top.fail(jnode, "'joints' has " + std::to_string(jnode.size()) + " joints, at most " +
                         std::to_string(kin::kMaxJoints) + " are supported");
   }
-  std::vector<kin::JointDescription> joints;
-  std::vector<int> joint_lines;
   std::set<std::string> names;
   for (std::size_t i = 0; i < jnode.size(); ++i) {
-    const std::string ctx = "joints[" + std::to_string(i) + "]";
-    MapReader j(file, jnode[i], ctx);
-    kin::JointDescription d;
-    d.name = j.string("name");
-    if (d.name.empty()) j.fail_key("name", "joint name in " + ctx + " is empty");
-    if (!names.insert(d.name).second) j.fail_key("name", "duplicate joint name '" + d.name + "'");
-    const auto lim = j.numbers_fixed<2>("limits");
-    if (!(lim[0] < lim[1])) {
-      j.fail_key("limits", "joint '" + d.name + "' limits reversed: lower " + fmt(lim[0]) +
-                               " must be below upper " + fmt(lim[1]));
-    }
-    d.limits.lower = lim[0] * u.angle;
-    d.limits.upper = lim[1] * u.angle;
-    if (poe) {
-      MapReader s = j.map("screw");
-      const auto w = s.numbers_fixed<3>("omega");
-      const auto q = s.numbers_fixed<3>("q");
-      const Eigen::Vector3d omega(w[0], w[1], w[2]);
-      if (!(omega.norm() > 1e-9)) {
-        s.fail_key("omega", "joint '" + d.name + "': screw axis 'omega' has zero length");
-      }
-      d.screw.omega = omega.normalized();
-      d.screw.q = Eigen::Vector3d(q[0], q[1], q[2]) * u.length;
-      s.finish();
-      d.dh.theta_offset = j.number_or("offset", 0.0) * u.angle;
-    } else {
-      MapReader h = j.map("dh");
-      d.dh.a = h.number("a") * u.length;
-      d.dh.alpha = h.number("alpha") * u.angle;
-      d.dh.d = h.number("d") * u.length;
-      d.dh.theta_offset = h.number_or("theta_offset", 0.0) * u.angle;
-      h.finish();
-    }
-    j.finish();
-    joints.push_back(std::move(d));
-    joint_lines.push_back(line_of(jnode[i]));
+    MapReader j(top.file(), jnode[i], "joints[" + std::to_string(i) + "]");
+    out.list.push_back(read_joint(j, u, poe, names));
+    out.lines.push_back(line_of(jnode[i]));
   }
-  const int n = static_cast<int>(joints.size());
+  return out;
+}
 
-  top.allow("base");
-  top.allow(poe ? "home_pose" : "tool");
-  const kin::Pose base = top.has("base") ? read_pose(top, "base", u) : kin::Pose::Identity();
-  kin::Pose tool = kin::Pose::Identity();
+// Standard and modified DH take a 'tool' (frame n to palm); PoE takes the
+// palm pose at q = 0 as 'home_pose'.
+kin::Pose read_tool(MapReader& top, const Units& u, bool poe, const std::string& convention) {
   if (poe) {
     if (top.has("tool")) {
       top.fail_key("tool",
                    "'tool' is not used with convention poe: give the palm pose at q = 0 "
                    "as 'home_pose'");
     }
-    tool = read_pose(top, "home_pose", u);
-  } else {
-    if (top.has("home_pose")) {
-      top.fail_key("home_pose",
-                   "'home_pose' is only used with convention poe: give 'tool' "
-                   "(frame n to palm) for " +
-                       conv);
-    }
-    if (top.has("tool")) tool = read_pose(top, "tool", u);
+    return read_pose(top, "home_pose", u);
   }
+  if (top.has("home_pose")) {
+    top.fail_key("home_pose",
+                 "'home_pose' is only used with convention poe: give 'tool' "
+                 "(frame n to palm) for " +
+                     convention);
+  }
+  return top.has("tool") ? read_pose(top, "tool", u) : kin::Pose::Identity();
+}
 
-  model.home_posture = kin::JointVector::Zero(n);
+kin::JointVector read_home_posture(MapReader& top, const Units& u, const Joints& joints) {
+  const int n = static_cast<int>(joints.list.size());
+  kin::JointVector home = kin::JointVector::Zero(n);
   if (top.has("home_posture")) {
     const YAML::Node hp = top.child("home_posture");
     const auto v = top.to_numbers(hp, "home_posture");
@@ -167,23 +185,24 @@ KinematicModel read_model(const YAML::Node& root, const std::string& file) {
       top.fail(hp, "'home_posture' must have " + std::to_string(n) +
                        " numbers (one per joint), has " + std::to_string(v.size()));
     }
-    for (int i = 0; i < n; ++i) model.home_posture[i] = v[static_cast<std::size_t>(i)] * u.angle;
+    for (int i = 0; i < n; ++i) home[i] = v[static_cast<std::size_t>(i)] * u.angle;
   }
   for (int i = 0; i < n; ++i) {
-    const auto& lim = joints[static_cast<std::size_t>(i)].limits;
-    const double h = model.home_posture[i];
-    if (h < lim.lower || h > lim.upper) {
-      const double k = 1.0 / u.angle;
-      const std::string what = "home posture of joint '" +
-                               joints[static_cast<std::size_t>(i)].name + "' (" + fmt(h * k) + " " +
-                               u.angle_name + ") is outside its limits [" + fmt(lim.lower * k) +
-                               ", " + fmt(lim.upper * k) + "]";
-      if (top.has("home_posture")) top.fail(top.node()["home_posture"][i], what);
-      throw ConfigError(file, joint_lines[static_cast<std::size_t>(i)], what);
-    }
+    const auto idx = static_cast<std::size_t>(i);
+    const auto& lim = joints.list[idx].limits;
+    if (home[i] >= lim.lower && home[i] <= lim.upper) continue;
+    const double k = 1.0 / u.angle;
+    const std::string what = "home posture of joint '" + joints.list[idx].name + "' (" +
+                             fmt(home[i] * k) + " " + u.angle_name + ") is outside its limits [" +
+                             fmt(lim.lower * k) + ", " + fmt(lim.upper * k) + "]";
+    if (top.has("home_posture")) top.fail(top.node()["home_posture"][i], what);
+    throw ConfigError(top.file(), joints.lines[idx], what);
   }
+  return home;
+}
 
-  auto& rig = model.rig;
+kin::RigKinematicsConfig read_rig(MapReader& top, int n) {
+  kin::RigKinematicsConfig rig;
   rig.elbow_frame = static_cast<int>(top.integer_or("elbow_frame", n < 4 ? n : 4));
   if (rig.elbow_frame < 0 || rig.elbow_frame > n + 1) {
     top.fail_key("elbow_frame", "'elbow_frame' must be a frame 0.." + std::to_string(n + 1) +
@@ -206,12 +225,33 @@ KinematicModel read_model(const YAML::Node& root, const std::string& file) {
     top.fail_key("singularity_threshold",
                  "'singularity_threshold' must be in [0, 1] (it applies to the normalised value)");
   }
+  return rig;
+}
+
+KinematicModel read_model(const YAML::Node& root, const std::string& file) {
+  MapReader top(file, root, "model");
+  KinematicModel model;
+  model.file = file;
+  model.name = top.string("name");
+  model.description = top.string_or("description", "");
+  std::string conv;
+  const kin::Convention convention = read_convention(top, conv);
+  const bool poe = convention == kin::Convention::kProductOfExponentials;
+  const Units u = read_units(top);
+  Joints joints = read_joints(top, u, poe);
+
+  top.allow("base");
+  top.allow(poe ? "home_pose" : "tool");
+  const kin::Pose base = top.has("base") ? read_pose(top, "base", u) : kin::Pose::Identity();
+  const kin::Pose tool = read_tool(top, u, poe, conv);
+  model.home_posture = read_home_posture(top, u, joints);
+  model.rig = read_rig(top, static_cast<int>(joints.list.size()));
   top.finish();
 
   try {
-    model.chain = kin::Chain(convention, std::move(joints), base, tool);
+    model.chain = kin::Chain(convention, std::move(joints.list), base, tool);
   } catch (const std::exception& e) {
-    throw ConfigError(file, line_of(jnode), e.what());
+    throw ConfigError(file, line_of(joints.node), e.what());
   }
   return model;
 }

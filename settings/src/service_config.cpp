@@ -240,6 +240,8 @@ drivers::SourceContext make_source_context(const ServiceConfig& config) {
     j.upper_rad = config.model.chain.joints()[idx].limits.upper;
     j.max_speed_rad_s = e.max_speed_rad_s;
   }
+  ctx.chain = config.model.chain;
+  ctx.rig = config.model.rig;
   return ctx;
 }
 

@@ -132,6 +132,8 @@ exodaq::test::RunResult run_tool(const Case& c, const std::string& tmp) {
     cfg.replace(cfg.find(from), from.size(), "calibration: " + kRoot + "/calibrations/" + c.file);
     cfg.replace(cfg.find("model: models/"), 14,
                 "model: " + std::string(EXODAQ_SOURCE_DIR) + "/config/models/");
+    cfg.replace(cfg.find("task: tasks/"), 12,
+                "task: " + std::string(EXODAQ_SOURCE_DIR) + "/config/tasks/");
     const std::string path = tmp + "/config.yaml";
     std::ofstream(path) << cfg;
     return exodaq::test::run({EXODAQD, "--config", path, "--check-config"});

@@ -4,6 +4,7 @@
 // read().
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <vector>
 
@@ -191,6 +192,35 @@ TEST(SimSource, CleanRunHasNoFlagsAndWallClockFromStart) {
   EXPECT_EQ(src.stats().frames, 2000 * 2 + 20 + src.decoder().detail().index_frames);
 }
 
+// A scripted stall (a host held off): the read that reaches at_s blocks for
+// for_s of real time; the samples are those of the same run without it.
+TEST(SimSource, StallBlocksTheReadThatReachesItsStart) {
+  SimOptions o;
+  o.start_mono_ns = 1'000'000'000;
+  SimSource reference(o);
+  sim::SimFault stall;
+  stall.kind = sim::SimFault::Kind::kStall;
+  stall.start_s = 0.0105;  // cycle 11 (t = 11 ms) is the first at or after it
+  stall.duration_s = 0.2;
+  o.faults.push_back(stall);
+  SimSource src(o);
+  src.start();
+  reference.start();
+  EncoderSample s;
+  EncoderSample r;
+  std::chrono::steady_clock::duration cycle_11{};
+  for (int k = 0; k < 40; ++k) {
+    const auto t0 = std::chrono::steady_clock::now();
+    ASSERT_EQ(src.read({}, s), ReadStatus::kSample);
+    if (k == 11) cycle_11 = std::chrono::steady_clock::now() - t0;
+    ASSERT_EQ(reference.read({}, r), ReadStatus::kSample);
+    ASSERT_EQ(s.mono_ns, r.mono_ns);
+    ASSERT_EQ(s.count16, r.count16);
+    ASSERT_EQ(s.flags, r.flags);
+  }
+  EXPECT_GE(cycle_11, std::chrono::milliseconds(200));
+}
+
 TEST(SimSource, BadOptionsThrow) {
   SimOptions o;
   o.encoders[2].channel = 0;  // two joints on channel 0
@@ -203,6 +233,10 @@ TEST(SimSource, BadOptionsThrow) {
   EXPECT_THROW(SimSource{o}, std::invalid_argument);
   o = SimOptions{};
   o.board.ids.counts_b = o.board.ids.counts_a;
+  EXPECT_THROW(SimSource{o}, std::invalid_argument);
+  o = SimOptions{};
+  o.faults.push_back(sim::SimFault{});
+  o.faults.back().kind = sim::SimFault::Kind::kStall;  // no duration: would block for ever
   EXPECT_THROW(SimSource{o}, std::invalid_argument);
 }
 

@@ -60,12 +60,16 @@ ScenarioResult run_scenario(const config::ServiceConfig& config, double seconds,
   auto source = drivers::make_source(rig_side.source, config::make_source_context(rig_side));
   r.sim = dynamic_cast<const drivers::SimSource*>(source.get());
   if (r.sim == nullptr) throw std::runtime_error("scenario needs the sim backend");
-  core::AcquisitionConfig ac = core::make_acquisition_config(config);
-  ac.clock.require_sync = core::RequireSync::kIgnore;
   auto sink = std::make_unique<KeepingSink>();
   sink->out = &r;
-  r.acquisition = std::make_unique<core::Acquisition>(
-      ac, core::make_pipeline_config(config), std::move(source), std::move(sink), "", nullptr);
+  config::ServiceConfig daemon_side = config;
+  daemon_side.clock.require_sync = core::RequireSync::kIgnore;
+  core::AcquisitionOptions wiring;
+  wiring.source = std::move(source);
+  wiring.sink = std::move(sink);
+  wiring.channel_prefix = "";
+  wiring.realtime = false;
+  r.acquisition = core::build_acquisition(daemon_side, std::move(wiring));
   r.acquisition->prepare_for_manual_cycles();
   const std::int64_t t0 = 1000LL * 1'000'000'000LL;
   const auto n = static_cast<std::int64_t>(seconds * 1000.0);

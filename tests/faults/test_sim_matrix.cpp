@@ -212,6 +212,7 @@ TEST(SimMatrix, TheNewFaultKindsAreAvailableFromTheServiceConfig) {
       std::regex_replace(text.str(), std::regex("model: models/"), "model: " + cfg_dir + "models/");
   yaml = std::regex_replace(yaml, std::regex("calibration: calibration/"),
                             "calibration: " + cfg_dir + "calibration/");
+  yaml = std::regex_replace(yaml, std::regex("task: tasks/"), "task: " + cfg_dir + "tasks/");
   yaml = std::regex_replace(yaml, std::regex("    jitter_us: 0\n"),
                             "    jitter_us: 0\n"
                             "    faults:\n"

@@ -287,9 +287,11 @@ TEST(SimScenario, BoardErrorBitsInvalidateUntilTheHeartbeatClears) {
 TEST(SimScenario, AJointDrivenBeyondItsLimitIsOutOfRangeWhileThere) {
   auto cfg = sim_config();
   // The elbow (joint 5) is pushed 900 counts (32 deg) up and back over 2 s,
-  // past its 8.1 deg limit + 2 deg margin.
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
-      .faults.push_back(fault(SimFault::Kind::kExcursion, 12.0, 2.0, 4, 900));
+  // past its 8.1 deg limit + 2 deg margin: on the hand-made curves, whose
+  // elbow is near its upper limit at 12 s.
+  auto& rig = exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim");
+  rig.motion = "curves";
+  rig.faults.push_back(fault(SimFault::Kind::kExcursion, 12.0, 2.0, 4, 900));
   const auto r = run_scenario(cfg, 16.0);
   const auto& s = r.last_status();
   EXPECT_EQ(s.out_of_range_events[4], 1);
@@ -312,8 +314,10 @@ TEST(SimScenario, AJointDrivenBeyondItsLimitIsOutOfRangeWhileThere) {
 
 TEST(SimScenario, AStuckChannelIsCaughtWhenItResumes) {
   auto cfg = sim_config();
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
-      .faults.push_back(fault(SimFault::Kind::kStuck, 12.0, 1.0, 2));
+  // On the hand-made curves: joint 3 moves while its counter is frozen.
+  auto& rig = exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim");
+  rig.motion = "curves";
+  rig.faults.push_back(fault(SimFault::Kind::kStuck, 12.0, 1.0, 2));
   const auto r = run_scenario(cfg, 30.0);
   const auto& s = r.last_status();
   // A frozen counter looks like a joint at rest; when it resumes, the jump is

@@ -14,6 +14,7 @@ std::string write_sim_config(const std::string& dir, const std::string& prefix,
   std::string text = read_file(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
   const std::string cfg_dir = std::string(EXODAQ_SOURCE_DIR) + "/config/";
   text = std::regex_replace(text, std::regex("model: models/"), "model: " + cfg_dir + "models/");
+  text = std::regex_replace(text, std::regex("task: tasks/"), "task: " + cfg_dir + "tasks/");
   if (calibration.empty()) {
     text = std::regex_replace(text, std::regex("calibration: calibration/"),
                               "calibration: " + cfg_dir + "calibration/");

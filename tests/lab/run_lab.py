@@ -82,6 +82,7 @@ def write_config(work, prefix):
     cfg = os.path.join(SOURCE_DIR, "config") + "/"
     text = text.replace("model: models/", "model: " + cfg + "models/")
     text = text.replace("calibration: calibration/", "calibration: " + cfg + "calibration/")
+    text = text.replace("task: tasks/", "task: " + cfg + "tasks/")
     text, n = re.subn(r'^(\s*url:\s*)"[^"]*"', rf'\g<1>"{PUBLISH_URL}"', text, flags=re.M)
     if n != 1:
         raise RuntimeError("config/sim.yaml: no lcm url line to replace")

@@ -30,12 +30,15 @@ for p in liblcm1 libyaml-cpp0.7 libsystemd0 libfmt9 libstdc++6 libc6 systemd; do
   grep -qxF "$p" <<<"$names" || fail "Depends lacks $p"
 done
 grep -q "^libspdlog1\.10" <<<"$names" || fail "Depends lacks libspdlog1.10"
-dpkg-deb --ctrl-tarfile "$deb" | tar -x -C "$work" ./conffiles ./postinst
+dpkg-deb --ctrl-tarfile "$deb" | tar -x -C "$work" ./conffiles ./postinst ./prerm
 for f in /etc/exodaq/exodaqd.yaml /etc/exodaq/models/macaque_exo.yaml \
   /etc/exodaq/calibration/nominal.yaml; do
   grep -qx "$f" "$work/conffiles" || fail "$f is not a conffile"
 done
 grep -q systemd-sysusers "$work/postinst" || fail "postinst does not create the user"
+# The Python package's byte code is compiled on install and removed on removal.
+grep -q "py3compile -p exodaq" "$work/postinst" || fail "postinst does not py3compile"
+grep -q "py3clean -p exodaq" "$work/prerm" || fail "prerm does not py3clean"
 # Every dependency resolves on this Debian host (nothing is installed).
 apt-get install --simulate "$deb" >"$work/apt.log" 2>&1 ||
   { cat "$work/apt.log" >&2; fail "apt-get cannot satisfy the package's dependencies"; }
@@ -50,6 +53,17 @@ for f in ./usr/bin/exodaqd ./usr/bin/exodaq ./etc/exodaq/exodaqd.yaml \
   ./usr/share/doc/exodaq/examples/80-can0.network; do
   grep -qx "$f" "$work/files" || fail "package lacks $f"
 done
+# The Python package (tools/python) in Debian python3's dist-packages, sources only.
+py=./usr/lib/python3/dist-packages
+for f in $py/exodaq/__init__.py $py/exodaq/client.py $py/exodaq/udpm.py $py/exodaq/names.py \
+  $py/exodaq/joint_state_t.py $py/exodaq/palm_pose_t.py $py/exodaq/encoder_raw_t.py \
+  $py/exodaq/status_t.py $py/exodaq/_version.py $py/exodaq_lcm.py; do
+  grep -qx "$f" "$work/files" || fail "package lacks $f"
+done
+grep -qx "$py/exodaq-[0-9.]*\.egg-info/PKG-INFO" "$work/files" || fail "package lacks the egg-info"
+! grep -q '\.pyc$' "$work/files" || fail "package ships byte code"
+! grep -q '^./usr/share/exodaq/lcmtypes/python' "$work/files" ||
+  fail "package still ships the Python types under /usr/share/exodaq/lcmtypes/python"
 if [ -x "$build/tools/board-sim/exodaq-board-sim" ]; then
   grep -qx ./usr/bin/exodaq-board-sim "$work/files" || fail "package lacks exodaq-board-sim"
 fi
@@ -88,6 +102,16 @@ fi
 file "$root/usr/bin/exodaqd" | grep -q "stripped" && ! file "$root/usr/bin/exodaqd" | grep -q "not stripped" ||
   fail "exodaqd not stripped"
 
+# 5b. The installed Python package, from an unrelated directory with only the
+#     root's dist-packages on PYTHONPATH: the subscriber of docs/messages.md
+#     against the installed exodaqd (tests/python/run_docs_subscriber.py).
+(cd "$work" && PYTHONPATH="$root/usr/lib/python3/dist-packages" PYTHONDONTWRITEBYTECODE=1 \
+  /usr/bin/python3 -c 'import exodaq, sys; sys.exit(exodaq.joint_flag_names(66) != "STALE|HELD")') ||
+  fail "import exodaq from the installed root"
+/usr/bin/python3 "$src/tests/python/run_docs_subscriber.py" --source-dir "$src" \
+  --exodaqd "$root/usr/bin/exodaqd" --exodaq "$root/usr/bin/exodaq" --python /usr/bin/python3 \
+  --site "$root/usr/lib/python3/dist-packages" || fail "the docs' Python subscriber on the installed package"
+
 # 6. The packaged unit: identical to systemd/exodaqd.service, and it verifies
 #    when its paths point into the root (see tests/systemd/check_unit.sh).
 cmp -s "$root/lib/systemd/system/exodaqd.service" "$src/systemd/exodaqd.service" ||
@@ -107,6 +131,7 @@ if [ "$(id -u)" -eq 0 ]; then
     fail "reinstall overwrote the edited /etc/exodaq/exodaqd.yaml"
   dpkg_root -r exodaq >"$work/dpkg3.log" 2>&1 || { cat "$work/dpkg3.log" >&2; fail "remove"; }
   [ ! -e "$root/usr/bin/exodaqd" ] || fail "remove left /usr/bin/exodaqd"
+  [ ! -e "$root/usr/lib/python3/dist-packages/exodaq" ] || fail "remove left the Python package"
   [ -f "$root/etc/exodaq/exodaqd.yaml" ] || fail "remove deleted the config"
   dpkg_root -P exodaq >"$work/dpkg4.log" 2>&1 || { cat "$work/dpkg4.log" >&2; fail "purge"; }
   [ ! -e "$root/etc/exodaq/exodaqd.yaml" ] || fail "purge left the config"

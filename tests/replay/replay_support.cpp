@@ -42,6 +42,7 @@ std::string write_sim_config(const std::string& dir, const std::string& prefix) 
   std::string text = read_text(src + "sim.yaml");
   replace_once(text, "\nmodel: ", "\nmodel: " + src);
   replace_once(text, "\ncalibration: ", "\ncalibration: " + src);
+  replace_once(text, "task: tasks/", "task: " + src + "tasks/");
   replace_once(text, "prefix: \"\"", "prefix: \"" + prefix + "\"");
   const std::string path = dir + "/sim.yaml";
   write_text(path, text);

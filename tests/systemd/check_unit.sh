@@ -101,6 +101,7 @@ if command -v strace >/dev/null 2>&1; then
   done < <(grep '^SystemCallFilter=' "$unit")
   sed -e "s#model: models/#model: $src/config/models/#" \
     -e "s#calibration: calibration/#calibration: $src/config/calibration/#" \
+    -e "s#task: tasks/#task: $src/config/tasks/#" \
     -e 's/priority: 0 /priority: 50 /' -e 's/lock_memory: false/lock_memory: true/' \
     -e "s/prefix: \"\"/prefix: \"T$$_strace_\"/" "$src/config/sim.yaml" >"$stage/strace.yaml"
   strace -f -qq -o "$stage/strace.out" "$stage/bin/exodaqd" --config "$stage/strace.yaml" \

@@ -27,6 +27,7 @@ def sim_config(source, work):
     cfg = os.path.join(source, "config")
     text = text.replace("\nmodel: ", "\nmodel: " + cfg + "/")
     text = text.replace("\ncalibration: ", "\ncalibration: " + cfg + "/")
+    text = text.replace("task: tasks/", "task: " + cfg + "/tasks/")
     text = text.replace('prefix: ""', 'prefix: "RUNTEST%d_"' % os.getpid())
     path = os.path.join(work, "sim.yaml")
     open(path, "w").write(text)

@@ -136,6 +136,7 @@ class Test:
         text = open(os.path.join(src, "config", "sim.yaml")).read()
         text = text.replace("model: models/", "model: %s/config/models/" % src)
         text = text.replace("calibration: calibration/", "calibration: %s/config/calibration/" % src)
+        text = text.replace("task: tasks/", "task: %s/config/tasks/" % src)
         text = text.replace('prefix: ""', 'prefix: "%s"' % self.prefix)
         text = re.sub(r'url: "[^"]*"', 'url: "%s"' % self.lcm_url, text)
         if os.geteuid() != 0:

@@ -3,8 +3,9 @@
 #  1. the CAN gtest binary (in-memory port tests + real-socket tests on vcan0);
 #  2. exodaqd (config/vcan.yaml, sync master) against exodaq-board-sim over
 #     vcan0, with candump -l recording and exodaq-vcan-check subscribed:
-#     homing and clean running, then every board-sim fault switch in its own
-#     window, cansend injections (wrong DLC, unknown ID, RTR, error frames),
+#     homing and clean running, then board-sim faults (--fault, the sim's
+#     fault kinds) each in its own window, cansend injections (wrong DLC,
+#     unknown ID, RTR, error frames),
 #     the interface taken down and brought back; the checker asserts the
 #     stream (seq, kernel timestamps, truth, flags, counters, recovery);
 #  3. the candump log and the checker's dump of the live cycles (joint_state +
@@ -60,12 +61,20 @@ CK=$!
 $B/exodaqd --config $CFG --log-level info > $W/daemon.log 2>&1 &
 DP=$!
 sleep 1
-# Fault windows in simulated seconds (one SYNC = 1 ms), after homing (~11.5 s).
+# Fault windows in simulated seconds (one SYNC = one period), after homing
+# (~11.5 s); the kinds and keys of source.sim.faults (docs/simulator.md).
 $B/exodaq-board-sim --iface vcan0 --config $CFG --truth $W/truth.txt \
-  --drop-percent 10@12.5+1 --burst-silence-ms 50@13.8 --bad-seq-every 10@14+0.5 \
-  --wrong-dlc-every 10@14.5+0.5 --duplicate-every 10@15+0.5 --error-frames 5@15.5 \
-  --delay-us 900@16+0.3 --board-error 0x10@16.5+0.5 --stuck-channel 2@17+0.5 \
-  --glitch 1:1000@18 --index-drift 4:5@12.2 2> $W/board.log &
+  --fault '{kind: drop, percent: 10, at_s: 12.5, for_s: 1}' \
+  --fault '{kind: silence, at_s: 13.8, for_s: 0.05}' \
+  --fault '{kind: bad_seq, every: 10, at_s: 14, for_s: 0.5}' \
+  --fault '{kind: wrong_dlc, every: 10, at_s: 14.5, for_s: 0.5}' \
+  --fault '{kind: duplicate, every: 10, at_s: 15, for_s: 0.5}' \
+  --fault '{kind: error_frame, every: 10, at_s: 15.5, for_s: 0.5}' \
+  --fault '{kind: delay, delay_us: 900, at_s: 16, for_s: 0.3}' \
+  --fault '{kind: board_error, error_bits: 16, at_s: 16.5, for_s: 0.5}' \
+  --fault '{kind: stuck, joint: 3, error_bits: 1, at_s: 17, for_s: 0.5}' \
+  --fault '{kind: glitch, joint: 2, counts: 1000, at_s: 18}' \
+  --fault '{kind: lost_counts, joint: 5, counts: 5, at_s: 12.2}' 2> $W/board.log &
 BS=$!
 step "board-sim started"
 # Wait until the board simulator has simulated 19 s.

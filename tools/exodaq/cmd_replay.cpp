@@ -3,7 +3,7 @@
 // and write the results as an LCM log (docs/replay.md).
 //   exodaq replay IN -c C -o OUT.lcm [--speed 0.5|1|4|max]
 //                 [--format auto|lcm|candump] [--calibration FILE]
-//                 [--channel NAME] [--prefix P] [-q]
+//                 [--channel NAME] [--prefix P] [-q] [-v]
 // The output is written as a files::OutputFile (through msg::LogWriter): it
 // appears complete or not at all, and never replaces an input.
 //
@@ -107,8 +107,8 @@ class LcmLogSink final : public core::MessageSink {
     if (!error_.empty()) throw std::runtime_error(error_);
     log_.close();
   }
-  bool failed() const noexcept { return !error_.empty(); }
 
+  bool failed() const noexcept { return !error_.empty(); }
   std::int64_t written() const noexcept { return log_.events(); }
   std::int64_t palm_messages() const noexcept { return palm_messages_; }
   std::int64_t valid_palm() const noexcept { return valid_; }
@@ -149,7 +149,8 @@ std::string hex_bytes(const std::string& b) {
 }
 
 // What the input is, said before the backend reads it: "auto" becomes "lcm"
-// or "candump", or the error says what the file is not.
+// or "candump", or the error says what the file is not. FIFOs, devices and
+// directories are refused here (files::check_input).
 std::string check_recording(const std::string& path, const std::string& format) {
   const files::InputInfo info = files::check_input(path, -1);
   if (format == "candump" || format == "lcm") return format;  // the backend's own messages
@@ -184,16 +185,6 @@ std::string check_recording(const std::string& path, const std::string& format) 
   throw std::runtime_error(what);
 }
 
-// The daemon's own loop settings, switched to replay.
-core::AcquisitionConfig acquisition_config(const config::ServiceConfig& c, std::int64_t run_id) {
-  core::AcquisitionConfig a = core::make_acquisition_config(c);
-  a.cpu = -1;
-  a.priority = 0;
-  a.lock_memory = false;
-  a.run_id = run_id;
-  return a;
-}
-
 class Progress {
  public:
   Progress(std::int64_t total, bool enabled) : total_(total), enabled_(enabled) {}
@@ -220,10 +211,113 @@ class Progress {
   std::int64_t last_ns_ = 0;
 };
 
+// What driving the cycles took.
+struct ReplayRun {
+  std::int64_t cycles = 0;
+  double run_s = 0.0;  // wall time
+  double cpu_s = 0.0;  // this thread's CPU time
+};
+
+// Drives the cycles one by one at the recorded instants (paced by `speed`, or
+// flat out when 0) until the recording ends or SIGINT/SIGTERM, then stops the
+// acquisition (its final status) and drains what it published.
+// A failed output write (a full disk) ends it early: the output is lost anyway.
+ReplayRun drive_cycles(core::Acquisition& acq, const drivers::ReplaySource& replay, double speed,
+                       bool quiet, const LcmLogSink& sink) {
+  struct sigaction sa {};
+  sa.sa_handler = on_interrupt;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  const bool tty = !quiet && isatty(STDERR_FILENO) != 0;
+  Progress progress(replay.sample_count(), tty);
+  core::LogEvent event;
+  ReplayRun run;
+  std::int64_t last_t = 0;
+  std::int64_t first_recorded = -1;
+  const std::int64_t run_start = mono_now_ns();
+  const std::int64_t cpu_start = thread_cpu_now();
+  while (!g_interrupted.load(std::memory_order_relaxed) && !sink.failed()) {
+    const std::int64_t next = replay.next_sample_mono_ns();
+    const std::int64_t t = next >= 0 ? next : last_t;
+    if (speed > 0.0 && next >= 0) {
+      if (first_recorded < 0) first_recorded = next;
+      sleep_until(run_start +
+                  static_cast<std::int64_t>(static_cast<double>(next - first_recorded) / speed));
+    }
+    // The recorded instant is both deadline and wake-up: a missing sample
+    // keeps its recorded mono_ns, and the status timing describes the recording.
+    if (!acq.run_cycle(t, t)) break;
+    last_t = t;
+    ++run.cycles;
+    if (speed > 0.0 || (run.cycles & 255) == 0) {
+      acq.publisher().drain();
+      while (acq.pop_event(event)) {
+      }
+      if ((run.cycles & 1023) == 0 || speed > 0.0) progress.update(run.cycles, mono_now_ns());
+    }
+  }
+  acq.stop();  // final status
+  acq.publisher().drain();
+  while (acq.pop_event(event)) {
+  }
+  run.run_s = static_cast<double>(mono_now_ns() - run_start) * 1e-9;
+  run.cpu_s = static_cast<double>(thread_cpu_now() - cpu_start) * 1e-9;
+  progress.update(run.cycles, mono_now_ns(), true);
+  progress.end();
+  return run;
+}
+
+void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
+                  const drivers::ReplaySource& replay, const std::string& prefix,
+                  const LcmLogSink& sink, const ReplayRun& run, double load_s) {
+  const drivers::ReplayLoadSummary& summary = replay.summary();
+  const auto ll = [](std::int64_t v) { return static_cast<long long>(v); };
+  const char* fmt = summary.format == drivers::ReplayFormat::kLcm ? "lcm" : "candump";
+  std::printf("exodaq replay: %s (%s", o.input.c_str(), fmt);
+  if (summary.format == drivers::ReplayFormat::kLcm) {
+    std::printf(", channel %s", summary.channel.c_str());
+  }
+  std::printf(", run %s) -> %s (prefix '%s')\n", msg::run_id_text(summary.run_id).c_str(),
+              o.out.c_str(), prefix.c_str());
+  std::printf("  config %s, calibration %s\n", o.config.c_str(), cfg.calibration_path.c_str());
+  // Cycles per second of wall time, and per second of this thread's CPU
+  // time (the figure that does not depend on what else the machine runs).
+  std::printf("  %lld cycles (%.3f s recorded) in %.3f s (%.3f s CPU)", ll(run.cycles),
+              summary.duration_s, run.run_s, run.cpu_s);
+  if (run.run_s > 0.0 && run.cpu_s > 0.0) {
+    const double rate = static_cast<double>(run.cycles) / run.run_s;
+    const double cpu_rate = static_cast<double>(run.cycles) / run.cpu_s;
+    const double period_s = cfg.loop.rate_hz > 0 ? 1.0 / cfg.loop.rate_hz : 0.0;
+    std::printf(": %.0f cycles/s (%.0fx real time), %.0f per CPU second", rate, rate * period_s,
+                cpu_rate);
+  }
+  std::printf(" (loading %.3f s)\n", load_s);
+  std::printf("  %lld messages written; palm pose valid in %lld of %lld cycles (%.1f%%)\n",
+              ll(sink.written()), ll(sink.valid_palm()), ll(sink.palm_messages()),
+              sink.palm_messages() > 0 ? 100.0 * static_cast<double>(sink.valid_palm()) /
+                                             static_cast<double>(sink.palm_messages())
+                                       : 0.0);
+  if (summary.format == drivers::ReplayFormat::kLcm) {
+    std::printf(
+        "  input: %lld events, %lld samples (%lld missing), %lld start-up messages skipped, "
+        "%lld messages of other runs skipped\n",
+        ll(summary.events), ll(summary.samples), ll(summary.missing), ll(summary.skipped_warmup),
+        ll(summary.skipped_other_runs));
+  } else {
+    const drivers::SourceStats st = replay.stats();
+    std::printf(
+        "  input: %lld lines, %lld frames, %lld malformed lines, %lld samples (%lld missing), "
+        "%lld sequence gaps, %lld bus errors\n",
+        ll(summary.events), ll(summary.frames), ll(summary.bad_lines), ll(summary.samples),
+        ll(summary.missing), ll(st.seq_gaps), ll(st.bus_errors));
+  }
+}
+
 // Problems in the input, with their place (file:line for candump, the event
-// number for LCM), on stderr even with --quiet.
-void report_issues(const drivers::ReplaySource& replay, const drivers::ReplayLoadSummary& summary,
-                   const std::string& input) {
+// number for LCM), on stderr even with -q; -v lists every one.
+void report_issues(const drivers::ReplaySource& replay, const std::string& input) {
+  const drivers::ReplayLoadSummary& summary = replay.summary();
   const auto ll = [](std::int64_t v) { return static_cast<long long>(v); };
   const auto& issues = replay.issues();
   if (!issues.empty()) {
@@ -231,7 +325,7 @@ void report_issues(const drivers::ReplaySource& replay, const drivers::ReplayLoa
                                    ? summary.bad_lines
                                    : static_cast<std::int64_t>(issues.size());
     std::fprintf(stderr, "exodaq replay: %lld problem(s) in %s:\n", ll(total), input.c_str());
-    const std::size_t kShown = common_options().verbose ? issues.size() : 50;  // -v: all
+    const std::size_t kShown = common_options().verbose ? issues.size() : 50;
     for (std::size_t i = 0; i < issues.size() && i < kShown; ++i) {
       std::fprintf(stderr, "  %s:%lld: %s\n", input.c_str(), ll(issues[i].line),
                    issues[i].what.c_str());
@@ -287,103 +381,29 @@ int run_replay(const ReplayOptions& o) {
     prefix = summary.prefix;  // the recording's channel names
   }
 
+  // The daemon's wiring, with the recording as source, a log file as sink,
+  // the recording's run_id and no real-time scheduling.
   auto sink_owner = std::make_unique<LcmLogSink>(o.out, inputs);
   LcmLogSink* sink = sink_owner.get();
-  core::Acquisition acq(acquisition_config(cfg, summary.run_id), core::make_pipeline_config(cfg),
-                        std::move(source), std::move(sink_owner), prefix, nullptr);
-  acq.prepare_for_manual_cycles();
+  core::AcquisitionOptions wiring;
+  wiring.source = std::move(source);
+  wiring.sink = std::move(sink_owner);
+  wiring.channel_prefix = prefix;
+  wiring.run_id = summary.run_id;
+  wiring.realtime = false;
+  const auto acq = core::build_acquisition(cfg, std::move(wiring));
+  acq->prepare_for_manual_cycles();
   sink->arm();
 
-  struct sigaction sa {};
-  sa.sa_handler = on_interrupt;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-
   const bool quiet = common_options().quiet;
-  const bool tty = !quiet && isatty(STDERR_FILENO) != 0;
-  Progress progress(replay->sample_count(), tty);
-  core::LogEvent event;
-  std::int64_t cycles = 0;
-  std::int64_t last_t = 0;
-  std::int64_t first_recorded = -1;
-  const std::int64_t run_start = mono_now_ns();
-  const std::int64_t cpu_start = thread_cpu_now();
-  while (!g_interrupted.load(std::memory_order_relaxed) && !sink->failed()) {
-    const std::int64_t next = replay->next_sample_mono_ns();
-    const std::int64_t t = next >= 0 ? next : last_t;
-    if (speed > 0.0 && next >= 0) {
-      if (first_recorded < 0) first_recorded = next;
-      sleep_until(run_start +
-                  static_cast<std::int64_t>(static_cast<double>(next - first_recorded) / speed));
-    }
-    // The recorded instant is both deadline and wake-up: a missing sample
-    // keeps its recorded mono_ns, and the status timing describes the recording.
-    if (!acq.run_cycle(t, t)) break;
-    last_t = t;
-    ++cycles;
-    if (speed > 0.0 || (cycles & 255) == 0) {
-      acq.publisher().drain();
-      while (acq.pop_event(event)) {
-      }
-      if ((cycles & 1023) == 0 || speed > 0.0) progress.update(cycles, mono_now_ns());
-    }
-  }
-  acq.stop();  // final status
-  acq.publisher().drain();
-  while (acq.pop_event(event)) {
-  }
-  const double run_s = static_cast<double>(mono_now_ns() - run_start) * 1e-9;
-  const double cpu_s = static_cast<double>(thread_cpu_now() - cpu_start) * 1e-9;
-  progress.update(cycles, mono_now_ns(), true);
-  progress.end();
-  sink->finish();
-
-  const auto ll = [](std::int64_t v) { return static_cast<long long>(v); };
-  report_issues(*replay, summary, o.input);
+  const ReplayRun run = drive_cycles(*acq, *replay, speed, quiet, *sink);
+  sink->finish();  // throws with the reason when a write failed
+  if (!quiet) print_report(o, cfg, *replay, prefix, *sink, run, load_s);
+  report_issues(*replay, o.input);
   if (g_interrupted.load()) {
-    print_error("interrupted after " + std::to_string(cycles) + " cycles; " + o.out +
+    print_error("interrupted after " + std::to_string(run.cycles) + " cycles; " + o.out +
                 " holds them");
     return kExitFailure;
-  }
-  if (quiet) return kExitOk;
-  const char* fmt = summary.format == drivers::ReplayFormat::kLcm ? "lcm" : "candump";
-  std::printf("exodaq replay: %s (%s", o.input.c_str(), fmt);
-  if (summary.format == drivers::ReplayFormat::kLcm) {
-    std::printf(", channel %s", summary.channel.c_str());
-  }
-  std::printf(", run %s) -> %s (prefix '%s')\n", msg::run_id_text(summary.run_id).c_str(),
-              o.out.c_str(), prefix.c_str());
-  std::printf("  config %s, calibration %s\n", o.config.c_str(), cfg.calibration_path.c_str());
-  // Cycles per second of wall time, and per second of this thread's CPU
-  // time (the figure that does not depend on what else the machine runs).
-  std::printf("  %lld cycles (%.3f s recorded) in %.3f s (%.3f s CPU)", ll(cycles),
-              summary.duration_s, run_s, cpu_s);
-  if (run_s > 0.0 && cpu_s > 0.0) {
-    const double rate = static_cast<double>(cycles) / run_s;
-    const double cpu_rate = static_cast<double>(cycles) / cpu_s;
-    const double period_s = cfg.loop.rate_hz > 0 ? 1.0 / cfg.loop.rate_hz : 0.0;
-    std::printf(": %.0f cycles/s (%.0fx real time), %.0f per CPU second", rate, rate * period_s,
-                cpu_rate);
-  }
-  std::printf(" (loading %.3f s)\n", load_s);
-  std::printf("  %lld messages written; palm pose valid in %lld of %lld cycles (%.1f%%)\n",
-              ll(sink->written()), ll(sink->valid_palm()), ll(sink->palm_messages()),
-              sink->palm_messages() > 0 ? 100.0 * static_cast<double>(sink->valid_palm()) /
-                                              static_cast<double>(sink->palm_messages())
-                                        : 0.0);
-  if (summary.format == drivers::ReplayFormat::kLcm) {
-    std::printf(
-        "  input: %lld events, %lld samples (%lld missing), %lld start-up messages skipped, "
-        "%lld messages of other runs skipped\n",
-        ll(summary.events), ll(summary.samples), ll(summary.missing), ll(summary.skipped_warmup),
-        ll(summary.skipped_other_runs));
-  } else {
-    const drivers::SourceStats st = replay->stats();
-    std::printf(
-        "  input: %lld lines, %lld frames, %lld malformed lines, %lld samples (%lld missing), "
-        "%lld sequence gaps, %lld bus errors\n",
-        ll(summary.events), ll(summary.frames), ll(summary.bad_lines), ll(summary.samples),
-        ll(summary.missing), ll(st.seq_gaps), ll(st.bus_errors));
   }
   return kExitOk;
 }

@@ -17,10 +17,10 @@
 #include <vector>
 
 #include "command.hpp"
-#include "exodaq/config/model_file.hpp"
-#include "exodaq/config/calibration_file.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/common/clock_now.hpp"
+#include "exodaq/config/calibration_file.hpp"
+#include "exodaq/config/model_file.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/subscriber.hpp"
@@ -123,10 +123,9 @@ int serve(const ViewOptions& o, view::ViewScene& scene, const view::SceneOptions
                        [&](const msg::Received& r) {
                          scene.on_palm_pose(std::get<palm_pose_t>(r.msg), mono_now_ns());
                        });
-  subscriber.subscribe(msg::channel_name(so.prefix, msg::Kind::kStatus), msg::Kind::kStatus,
-                       [&](const msg::Received& r) {
-                         scene.on_status(std::get<status_t>(r.msg), mono_now_ns());
-                       });
+  subscriber.subscribe(
+      msg::channel_name(so.prefix, msg::Kind::kStatus), msg::Kind::kStatus,
+      [&](const msg::Received& r) { scene.on_status(std::get<status_t>(r.msg), mono_now_ns()); });
 
   view::HttpOptions ho;
   ho.bind = o.bind;

@@ -5,11 +5,11 @@
 #include <stdexcept>
 #include <utility>
 
-#include "exodaq/version.hpp"
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/subscriber.hpp"
+#include "exodaq/version.hpp"
 #include "view_json.hpp"
 
 namespace exodaq::tools::view {

@@ -47,8 +47,9 @@ def kinematics(res):
 def peak_rss(rp):
     row = targets.BY_ID["replay_rss"]
     if rp.get("rss_mib") is None:
-        return f"peak RSS not measured ({row.pending}; target {row.target.text()})"
-    return render("peak RSS {rss_mib:.1f} MiB", rp) + f" (target {row.target.text()})"
+        return f"peak RSS not measured ({row.pending or rp.get('note')}; target {row.target.text()})"
+    return (render("peak RSS {rss_short_mib:.1f} MiB for that recording, {rss_long_mib:.1f} MiB for "
+                   "one of {rss_long_min:g} minutes", rp) + f" (target {row.target.text()})")
 
 
 def replay(res):
@@ -61,9 +62,9 @@ def replay(res):
     commit, date = measured_when(res, "replay")
     speed = targets.BY_ID["replay_speed"]
     L.append(f"*This run ({commit}, {date}; `bench/run` part `replay`, median of {rp['runs']} runs of "
-             f"{rp['cycles']} cycles):* cycle loop {rp['loop_cpu_speed_x']:.0f}× real time in CPU time "
-             f"({fmt(rp['loop_wall_speed_x'], 0, '×')} wall), whole process "
-             f"{fmt(rp['process_cpu_speed_x'], 0, '×')} CPU ({fmt(rp['process_wall_speed_x'], 0, '×')} wall); "
+             f"{rp['cycles']} cycles):* whole process {fmt(rp['process_cpu_speed_x'], 0, '×')} real time "
+             f"in CPU time ({fmt(rp['process_wall_speed_x'], 0, '×')} wall), cycle loop "
+             f"{rp['loop_cpu_speed_x']:.0f}× CPU ({fmt(rp['loop_wall_speed_x'], 0, '×')} wall); "
              f"target {speed.target.text()} ({speed.note}); {peak_rss(rp)}. Command: `{rp['command']}`.\n")
     return L
 

@@ -64,12 +64,14 @@ std::string find_raw_channel(const std::string& path,
 
 class LcmLoader {
  public:
-  LcmLoader(const ReplaySettings& settings, const SourceContext& context, Recording& out)
-      : settings_(settings), context_(context), out_(out) {}
+  LcmLoader(const ReplaySettings& settings, const SourceContext& context, const Pass* counted,
+            Pass& out, EntrySink& sink)
+      : settings_(settings), context_(context), counted_(counted), out_(out), sink_(sink) {}
 
   void load();
 
  private:
+  void choose_channels();
   void on_joint_state(const msg::LogEvent& ev);
   void on_raw(const msg::LogEvent& ev);
   bool accept_run(std::int64_t event_number);
@@ -80,7 +82,10 @@ class LcmLoader {
   static constexpr std::size_t kRing = 256;
   const ReplaySettings& settings_;
   const SourceContext& context_;
-  Recording& out_;
+  const Pass* counted_;  // the first pass, for the second; nullptr: this is the first
+  Pass& out_;
+  EntrySink& sink_;
+  bool stopped_ = false;  // the sink wants no more
   std::string raw_channel_;
   std::string joint_channel_;
   std::array<LoopInfo, kRing> recent_{};
@@ -93,24 +98,37 @@ class LcmLoader {
   bool have_previous_ = false;
 };
 
-void LcmLoader::load() {
-  const std::string& path = settings_.path;
-  const auto channels = msg::scan_channels(path);
-  raw_channel_ = find_raw_channel(path, channels, settings_.channel);
+// The raw channel, its prefix and the joint_state_t channel beside it: from
+// the log's headers, or as the counting pass found them.
+void LcmLoader::choose_channels() {
   ReplayLoadSummary& summary = out_.summary;
+  if (counted_ != nullptr) {
+    summary.channel = raw_channel_ = counted_->summary.channel;
+    summary.prefix = counted_->summary.prefix;
+    out_.joint_channel = joint_channel_ = counted_->joint_channel;
+    return;
+  }
+  const auto channels = msg::scan_channels(settings_.path);
+  raw_channel_ = find_raw_channel(settings_.path, channels, settings_.channel);
   summary.channel = raw_channel_;
   const auto parts = msg::split_channel(raw_channel_);
   const bool standard_name = parts && parts->kind == msg::Kind::kEncoderRaw;
   summary.prefix = standard_name ? parts->prefix : std::string();
   const std::string joint = msg::channel_name(summary.prefix, msg::Kind::kJointState);
   if (standard_name && channels.count(joint) != 0) joint_channel_ = joint;
+  out_.joint_channel = joint_channel_;
+}
 
+void LcmLoader::load() {
+  const std::string& path = settings_.path;
+  choose_channels();
+  ReplayLoadSummary& summary = out_.summary;
   msg::LogReader log(path);
   msg::LogEvent ev;
-  while (log.next(ev)) {
+  while (!stopped_ && log.next(ev)) {
     ++summary.events;
     if (!joint_channel_.empty() && ev.channel == joint_channel_) {
-      on_joint_state(ev);
+      if (counted_ != nullptr) on_joint_state(ev);  // counting needs no loop bits
     } else if (ev.channel == raw_channel_) {
       on_raw(ev);
     }
@@ -171,7 +189,7 @@ void LcmLoader::on_raw(const msg::LogEvent& ev) {
   previous_ = e.sample;
   have_previous_ = true;
   previous_seq_ = raw_.seq;
-  out_.entries.push_back(e);
+  if (!sink_.put(e)) stopped_ = true;
 }
 
 // One run is one replay: another daemon start in the same log (seq and homing
@@ -202,7 +220,6 @@ void LcmLoader::add_loop_info(EncoderSample& s) {
   const bool have_info = info.seq == raw_.seq && info.run_id == raw_.run_id;
   if (have_info) {
     s.flags |= info.sample_flags & kLoopFlags;
-    ++out_.summary.loop_flags_from_joint_state;
   } else if (joint_channel_.empty() && previous_seq_ >= 0 && raw_.seq > previous_seq_ + 1) {
     // No joint_state recorded: a seq jump is the live loop skipping cycles
     // after an overrun, and it flags the next cycle LATE.
@@ -246,9 +263,10 @@ void LcmLoader::count(const EncoderSample& s) {
 
 }  // namespace
 
-void load_lcm(const ReplaySettings& settings, const SourceContext& context, Recording& out) {
+void read_lcm(const ReplaySettings& settings, const SourceContext& context, const Pass* counted,
+              Pass& out, EntrySink& sink) {
   try {
-    LcmLoader(settings, context, out).load();
+    LcmLoader(settings, context, counted, out, sink).load();
   } catch (const msg::LogError& e) {
     throw std::runtime_error(std::string("replay: ") + e.what());
   }

@@ -1,6 +1,8 @@
 #pragma once
-// A recording loaded for replay (private to the replay backend): the samples
-// in order, what was not replayed and why, and the counters at its end.
+// One pass over a recording (private to the replay backend): the readers hand
+// each sample to a sink as they decode it, in order, and note in the pass what
+// was not replayed and why, and the counters at its end. Nothing is kept per
+// sample: the first pass counts, the second feeds the read-ahead ring.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -14,11 +16,20 @@ struct Entry {
   std::int64_t seq = -1;  // recorded seq (lcm); -1: the loop counts (candump)
 };
 
-struct Recording {
-  std::vector<Entry> entries;
+// Receives the samples of a pass; false stops the pass (the reader returns).
+class EntrySink {
+ public:
+  virtual bool put(const Entry& entry) = 0;
+
+ protected:
+  ~EntrySink() = default;
+};
+
+struct Pass {
   std::vector<ReplayIssue> issues;
   ReplayLoadSummary summary;
-  SourceStats stats;  // at the end of the input
+  SourceStats stats;          // at the end of the input
+  std::string joint_channel;  // lcm: the joint_state_t channel beside the raw one ("": none)
 
   static constexpr std::size_t kMaxStoredIssues = 1000;
   void note(std::int64_t where, std::string what) {
@@ -27,10 +38,14 @@ struct Recording {
 };
 
 // lcm-logger logs: the encoder_raw_t channel, with the loop's own flags from
-// the recorded joint_state_t of the same cycle. Throws std::runtime_error.
-void load_lcm(const ReplaySettings& settings, const SourceContext& context, Recording& out);
+// the recorded joint_state_t of the same cycle. `counted`: the first pass's
+// results, for the second (its channels, not looked for again); nullptr for
+// the first, which does without the loop's flags (they change no counter).
+// Throws std::runtime_error.
+void read_lcm(const ReplaySettings& settings, const SourceContext& context, const Pass* counted,
+              Pass& out, EntrySink& sink);
 
 // candump -l / -L logs, decoded by the BoardDecoder. Throws std::runtime_error.
-void load_candump(const std::string& path, Recording& out);
+void read_candump(const std::string& path, Pass& out, EntrySink& sink);
 
 }  // namespace exodaq::drivers::replay

@@ -98,7 +98,6 @@ class WallTimeMapper {
              std::int64_t target_generation) noexcept;
 
   std::int64_t steps() const noexcept { return steps_; }
-  std::int64_t applied_offset_ns() const noexcept { return applied_; }
   // utime minus the measured wall clock at the last sample (the correction still to slew out).
   std::int64_t pending_correction_ns() const noexcept { return applied_ - last_target_; }
 

@@ -1,7 +1,6 @@
 #pragma once
-// Loop health: per-cycle timing over a status window, the service state
-// machine, and the status_t message (10 Hz). Assembled on the loop thread
-// without allocation (fixed arrays, nth_element, snprintf into fixed buffers).
+// Loop health: per-cycle timing over a status window, the window's facts and
+// the service state machine. Loop thread; allocation-free.
 #include <array>
 #include <cstdint>
 
@@ -58,13 +57,31 @@ struct WindowFacts {
   std::int64_t overruns = 0;
 };
 
-// The state machine (docs/operations.md):
-//   starting -> homing       first sample received
-//   homing   -> running      every joint homed and the window clean
-//   running  -> degraded     any joint fault, sample/source flag, overrun or clock hold in the
-//   window degraded -> running      a clean window any      -> fault        no sample for
-//   fault_after_ms, bus-off or interface down fault    -> homing/running/degraded   samples return
+// One step of the service state machine (docs/operations.md, "Service state")
+// at the end of a window: starting, homing, running, degraded or fault from
+// the window's facts; stopping stays.
 ServiceState next_state(ServiceState current, const WindowFacts& facts,
                         std::int64_t ms_since_last_sample, std::int64_t fault_after_ms) noexcept;
+
+// next_state() with hysteresis: back from degraded to running only after
+// `clean_windows_to_recover` clean windows in a row. With
+// `hold_fault_while_samples` (a recording's time), a window that had samples
+// never enters fault.
+class ServiceStateMachine {
+ public:
+  struct Settings {
+    std::int64_t fault_after_ms = 500;
+    int clean_windows_to_recover = 10;
+    bool hold_fault_while_samples = false;
+  };
+  explicit ServiceStateMachine(const Settings& settings) : settings_(settings) {}
+
+  ServiceState next(ServiceState current, const WindowFacts& facts,
+                    std::int64_t ms_since_last_sample) noexcept;
+
+ private:
+  Settings settings_;
+  int clean_windows_ = 0;
+};
 
 }  // namespace exodaq::core

@@ -106,11 +106,13 @@ class JointTracker {
   const JointReading& reading() const noexcept { return reading_; }
   const JointCounters& counters() const noexcept { return counters_; }
   const JointTrackerConfig& config() const noexcept { return config_; }
-  // Radians per encoder count at the joint.
-  double rad_per_count() const noexcept { return rad_per_count_; }
 
  private:
+  void take_count(std::int64_t t_ns, std::uint16_t count16, JointEvent& event) noexcept;
   void home_on_index(std::int64_t index_count, JointEvent& event) noexcept;
+  // Homed: the index verifies the count, or re-homes when counts were lost.
+  void check_index(std::int64_t t_ns, std::int64_t index_count, JointEvent& event) noexcept;
+  void update_reading(std::int64_t t_ns, bool fresh, bool board_error, JointEvent& event) noexcept;
   double angle_of(std::int64_t count) const noexcept;
   void update_velocity(std::int64_t t_ns) noexcept;
 

@@ -68,7 +68,6 @@ class Pipeline {
                bool clock_invalid, CycleResult& out) noexcept;
 
   const JointTracker& joint(int i) const noexcept { return trackers_[static_cast<std::size_t>(i)]; }
-  const PipelineConfig& config() const noexcept { return *config_; }
 
  private:
   const PipelineConfig* config_;

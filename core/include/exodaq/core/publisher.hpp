@@ -71,7 +71,6 @@ class Publisher {
   const std::string& channel_name(msg::Kind id) const noexcept {
     return channels_[static_cast<std::size_t>(id)];
   }
-  MessageSink& sink() noexcept { return *sink_; }
 
  private:
   void run() noexcept;

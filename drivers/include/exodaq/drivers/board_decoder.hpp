@@ -2,40 +2,10 @@
 // Stateful assembly of protocol v1 frames into one EncoderSample per board
 // cycle. Shared by the sim backend, the SocketCAN backend and candump replay:
 // whoever has frames feeds them in with on_frame() and takes completed cycles
-// out with poll_sample(). Allocation-free; not thread-safe (one owner thread).
-//
-// Cycle assembly
-//   COUNTS_A and COUNTS_B with the same seq form one cycle. The cycle is
-//   complete when both halves arrived and is then queued for poll_sample().
-//   A half-assembled cycle is closed as kPartial when a count frame of a newer
-//   seq arrives, or when the owner calls flush() at its deadline. The missing
-//   half's counts repeat the last known counts; channel_fresh tells which
-//   channels arrived (0x07 = A only, 0x38 = B only).
-//
-// Time stamps
-//   A sample's mono_ns/wall_ns are the receive stamps of the count frame that
-//   arrived last in its cycle (the frame that completed it; for a partial
-//   cycle, the one half that arrived): the moment the whole sample was there.
-//
-// Sequence handling (uint8 seq, compared by seq_delta in [−128, 127])
-//   newer by 1      normal
-//   newer by d > 1  d − 1 cycles lost: seq_gaps += 1, lost_cycles += d − 1,
-//                   kSeqGap on that sample
-//   same as a cycle already taken (or the same half twice): dropped,
-//                   duplicates += 1, kDuplicate on the next delivered sample;
-//                   a half that had not arrived before its cycle was closed
-//                   counts as out of order instead
-//   older           dropped, out_of_order += 1, kOutOfOrder on the next sample
-//   Resynchronisation: after `resync_after_ns` without any count frame, or
-//   after `resync_after_rejects` consecutive dropped count frames (board
-//   restarted), the next count frame is taken as new whatever its seq
-//   (counted as one seq gap).
-//
-// Event flags (kSeqGap, kDuplicate, kOutOfOrder, kBusError from an error
-// frame) go on the next sample closed after the event — a cycle completed or
-// flushed, or make_missing() if that comes first. Level flags, added when a
-// sample is delivered: kBoardError while the last heartbeat had error bits;
-// kBusError while the bus state is kOff or kDown.
+// out with poll_sample()/poll_newest(). Allocation-free; not thread-safe (one
+// owner thread). Cycle assembly, time stamps, sequence handling,
+// resynchronisation and which sample carries which flag:
+// docs/can-protocol.md ("Cycle assembly and sequence handling").
 #include <array>
 #include <cstdint>
 
@@ -71,6 +41,11 @@ struct BoardDecoderStats {
   std::uint8_t protocol_version = 0;
 };
 
+// `older` is superseded by `newer` (a reader that fell behind delivers only the
+// newest cycle): `newer` keeps older's event flags and index latches, so
+// nothing is lost but the intermediate counts, which unwrapping bridges.
+void merge_superseded(const EncoderSample& older, EncoderSample& newer) noexcept;
+
 class BoardDecoder {
  public:
   static constexpr int kQueueCapacity = 8;
@@ -86,6 +61,9 @@ class BoardDecoder {
 
   // Takes the oldest completed cycle. false: none complete.
   bool poll_sample(EncoderSample& out) noexcept;
+  // Takes the newest completed cycle; older ones still queued are superseded
+  // (merge_superseded). Returns how many were, or -1 when none is complete.
+  int poll_newest(EncoderSample& out) noexcept;
 
   // Number of completed cycles waiting for poll_sample().
   int queued() const noexcept { return queue_size_; }

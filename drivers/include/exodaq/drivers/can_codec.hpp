@@ -132,6 +132,11 @@ inline constexpr std::uint8_t kTxPassive = 0x20;
 inline constexpr std::uint8_t kActive = 0x40;
 }  // namespace err_crtl
 
+// data[2] of a kProt error frame (CAN_ERR_PROT_*), the ones the simulators send.
+namespace err_prot {
+inline constexpr std::uint8_t kBit = 0x01;  // CAN_ERR_PROT_BIT: single bit error
+}  // namespace err_prot
+
 inline constexpr std::uint8_t kErrorFrameDlc = 8;  // CAN_ERR_DLC
 
 // ---------------------------------------------------------------------------

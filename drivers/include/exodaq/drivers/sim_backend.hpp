@@ -5,11 +5,13 @@
 // configured channels with the configured direction and gearing, each index
 // at the calibration's delta_theta0, powering up at the model's home posture.
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "exodaq/drivers/backend.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
+#include "exodaq/drivers/sim_task.hpp"
 
 namespace exodaq::drivers {
 
@@ -20,6 +22,9 @@ struct SimSourceSettings final : BackendSettings {
   double jitter_us = 0.0;                // sample-instant jitter (uniform, +/-)
   std::uint16_t powerup_count = 0x1234;  // counter value at power-up on every channel
   std::vector<sim::SimFault> faults;     // scripted faults (sim_rig.hpp)
+  std::string motion = "curves";         // "curves" (hand-made) or "task" (the task file)
+  std::string task_path;                 // source.sim.task, relative to the config
+  std::shared_ptr<const sim::SimTaskFile> task;  // parsed when task_path is given
   std::string describe() const override;
 };
 
@@ -29,8 +34,8 @@ sim::SimOptions sim_options_from(const SimSourceSettings& settings, const Source
 // The config's sim section (defaults when it has none).
 sim::SimOptions sim_options_from(const SourceOptions& options, const SourceContext& context);
 
-// One scripted fault from its YAML mapping (source.sim.faults[i], or a
-// board simulator's fault file). Throws config::ConfigError.
+// One scripted fault from its YAML mapping (source.sim.faults[i], or
+// exodaq-board-sim --fault). Throws config::ConfigError.
 sim::SimFault parse_sim_fault(config::MapReader& m);
 
 }  // namespace exodaq::drivers

@@ -11,6 +11,7 @@
 // eq. 4 θ = Δθ⁰ + θᴿ) and seed 001 (Table III joint speed bounds).
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <numbers>
 #include <span>
 #include <string_view>
@@ -36,17 +37,14 @@ inline constexpr Vec6 kLowerLimitRad{deg(-50.5), deg(-228.3), deg(-98.1),
 inline constexpr Vec6 kUpperLimitRad{deg(140.5), deg(48.3), deg(98.1), deg(80), deg(8.1), deg(80)};
 // Seed 000, Table 5: range of motion measured in the reach-grasp-feed task.
 inline constexpr Vec6 kTaskRomRad{deg(30.9), deg(5.1), deg(75.3), deg(39.9), deg(84.7), deg(54.9)};
-// Plausible speed bound per joint. Joints 1-4: seed 001 Table III rows 1-4 in
-// order (0.64, 1.06, 1.80, 5.38 rad/s) as the design notes map them. Joints
-// 5-6 are not in that table; chosen here: joint 5 (elbow) 5.38 rad/s, the
-// elbow row of the same table; joint 6 (pronation/supination) 3.0 rad/s, the
-// whole 55 deg task ROM in ~0.3 s.
-inline constexpr Vec6 kSpeedBoundRadS{0.64, 1.06, 1.80, 5.38, 5.38, 3.0};
-// The speed the simulated motion may reach: 80 % of the smaller of the bound
-// above and the bound under the anatomical reading of Table III (its rows are
-// shoulder ab/adduction, flexion/extension, internal/external rotation and
-// elbow, i.e. this rig's joints 2, 3, 4, 5), so the simulated arm stays
-// plausible whichever mapping a consumer applies.
+// Speed bound per joint, seed 001 Table III read by anatomy: its rows are its
+// own arm's shoulder ab/adduction (0.64 rad/s), flexion/extension (1.06),
+// internal/external rotation (1.80) and elbow (5.38), i.e. this rig's joints
+// 2, 3, 4 and 5. Joint 1 (azimuthal ab/adduction, seed 000 Table 2) takes the
+// ab/adduction row; joint 6 (pronation/supination, not in the table) 3.0 rad/s,
+// its whole 55 deg task ROM in ~0.3 s. The configs' max_speed_rad_s hold them.
+inline constexpr Vec6 kSpeedBoundRadS{0.64, 0.64, 1.06, 1.80, 5.38, 3.0};
+// The speed the hand-made curves may reach: 80 % of the bound.
 inline constexpr Vec6 kMotionSpeedCapRadS{0.8 * 0.64, 0.8 * 0.64, 0.8 * 1.06,
                                           0.8 * 1.80, 0.8 * 5.38, 0.8 * 3.0};
 
@@ -58,6 +56,9 @@ inline constexpr Vec6 kDefaultIndexAngleRad{deg(45 + 4), deg(-90 - 3), deg(90 - 
 // ---------------------------------------------------------------------------
 // Motion
 // ---------------------------------------------------------------------------
+
+struct SimTask;      // sim_task.hpp
+struct SimTaskPlan;  // sim_task.hpp
 
 struct SimMotionOptions {
   std::uint64_t seed = 1;  // same seed → same trajectory
@@ -79,6 +80,9 @@ struct SimMotionOptions {
   double feed_hold_s = 0.5;
   double home_hold_s = 0.4;
   int round_trips = 16;  // distinct reach→grasp→feed→return trips; then they repeat
+  // A task to run after homing instead of the hand-made round trips (the
+  // fields above from task_lower_rad on are then unused). Null: the curves.
+  std::shared_ptr<const SimTask> task;
 };
 
 struct JointTruth {
@@ -87,23 +91,17 @@ struct JointTruth {
   Vec6 acceleration{};  // rad/s²
 };
 
-// Rest-to-rest quintic segments (s = 10τ³ − 15τ⁴ + 6τ⁵): position, velocity
-// and acceleration are continuous everywhere, velocity and acceleration are
-// zero at every waypoint, each joint moves monotonically within a segment (so
-// it never overshoots its waypoints). Peak speed = 1.875 |Δθ| / T.
-//
-// Timeline: hold home for start_hold_s; then (if homing) for each joint in
-// turn home → index ± overshoot → home, only that joint moving; then the
-// round trips, home → reach → grasp → hold → feed → hold → home → hold,
-// repeated forever with period cycle_s(). truth(t) is analytic for any t
-// (t < 0 is home at rest).
+// The rig's joint motion: start hold, homing sweeps, then round trips
+// repeated with period cycle_s() (docs/simulator.md, "Motion"). Rest-to-rest
+// quintic segments; truth(t) is analytic for any t (t < 0: home at rest).
 class SimMotion {
  public:
   struct Segment {
     double t0 = 0.0;        // start time, s
     double duration = 0.0;  // s
     Vec6 from{};
-    Vec6 to{};  // equal to `from` for a hold
+    Vec6 to{};      // equal to `from` for a hold
+    int move = -1;  // >= 0: the task plan's joint trajectory `move`; else a quintic from -> to
   };
 
   // index_angle_rad: each joint's index angle; index_period_rad: 2π/gear, the
@@ -126,12 +124,14 @@ class SimMotion {
   const std::vector<Segment>& homing_segments() const noexcept { return homing_; }
   const std::vector<Segment>& trip_segments() const noexcept { return trips_; }  // t0 from 0
   const SimMotionOptions& options() const noexcept { return options_; }
+  const SimTaskPlan* task_plan() const noexcept { return plan_.get(); }  // null: curves
 
  private:
-  static JointTruth eval(const Segment& s, double t) noexcept;
+  JointTruth eval(const Segment& s, double t) const noexcept;
   static const Segment* find(const std::vector<Segment>& segs, double t) noexcept;
 
   SimMotionOptions options_;
+  std::shared_ptr<const SimTaskPlan> plan_;
   Vec6 homing_index_{};
   std::vector<Segment> homing_;  // absolute times
   std::vector<Segment> trips_;   // relative to homing_end_s_
@@ -152,16 +152,10 @@ struct SimEncoderParams {
   std::int64_t power_up_count = 0;       // counter value at t = 0, i.e. at home
 };
 
-// Encoder model, integer end to end:
-//   q(θ)     = (θ − θ_index) · cpr · gear / 2π      encoder position, counts (real)
-//   f(θ)     = floor(q(θ))                          whole counts past the index
-//   count(θ) = direction · f(θ) + offset,  offset = power_up_count − direction · f(θ_home)
-// An index pulse sits at every f = n · cpr (θ = θ_index + n · 2π/gear). When f
-// crosses it between two samples (either way), the board latches
-// count_at_index(n) = direction · n · cpr + offset — the count of the first
-// step at or above the boundary, the same value whichever way it is crossed.
-// Only the last crossing of a cycle is latched (one latch register). The wire
-// carries the low 16 bits of both.
+// Six incremental encoders: counts by the floor of the encoder position,
+// index latches where it crosses a whole revolution from the index angle
+// (docs/simulator.md, "Encoders and board"). Only the last crossing of a
+// cycle is latched.
 class SimEncoders {
  public:
   SimEncoders(const std::array<SimEncoderParams, kJoints>& params, const Vec6& initial_rad);
@@ -216,8 +210,9 @@ struct BoardCycle {
 class SimBoard {
  public:
   // INDEX frames, COUNTS_A, COUNTS_B, HEARTBEAT, and room for the frames a
-  // scripted fault adds (a duplicate, two held back from the previous cycle).
-  static constexpr int kMaxFramesPerCycle = kChannelCount + 6;
+  // scripted fault adds (a duplicate, two held back from the previous cycle,
+  // an error frame).
+  static constexpr int kMaxFramesPerCycle = kChannelCount + 7;
   using Frames = std::array<can::CanFrame, kMaxFramesPerCycle>;
 
   explicit SimBoard(const SimBoardOptions& options = {}) noexcept : options_(options) {}
@@ -248,45 +243,68 @@ inline std::array<SimEncoderParams, kJoints> default_encoders() noexcept {
   return e;
 }
 
-// A scripted fault of the simulated board or its encoders, active from
-// start_s for duration_s of simulated time (duration_s <= 0: until the end).
-// Count faults act on the board's counter of `joint`, so later counts and
-// index latches carry them, exactly as a real lost or extra count would.
+// A scripted fault of the simulated board, its encoders or the bus, active
+// from start_s for duration_s of simulated time (duration_s <= 0: until the
+// end). What each kind does, its parameters and what the daemon makes of it:
+// docs/simulator.md ("Fault kinds"), the one place the vocabulary is described.
 struct SimFault {
   enum class Kind : std::uint8_t {
-    kCountOffset,  // the counter jumps by `counts` at start_s and keeps it (a glitch)
-    kCountRamp,    // the counter gains `counts` one count per cycle from start_s (lost counts
-                   // too slow to look like a glitch; seen at the next index)
-    kExcursion,    // the joint really moves `counts` (at the encoder) away and back,
-                   // a triangle over duration_s: a joint driven beyond its limit
-    kStuck,        // the counter of `joint` freezes (a dead channel), then resumes
-    kSilence,      // no frame at all reaches the bus
-    kDrop,         // `percent` of cycles lose all their frames
-    kPartial,      // COUNTS_B is lost every cycle
-    kDuplicate,    // COUNTS_A is sent twice every cycle
-    kBoardError,   // the heartbeat reports `error_bits`
-    kReorder,      // every other cycle from start_s, that cycle's COUNTS_A/B are held back
-                   // and sent after the next cycle's (reaching the bus out of order)
-    kBadSeq,       // COUNTS_A/B carry seq + 128 (a corrupted sequence byte)
-    kWrongDlc,     // COUNTS_B is sent with DLC 6 instead of 8 (a malformed frame)
+    kCountOffset,  // glitch:      the counter jumps by `counts` and keeps it
+    kCountRamp,    // lost_counts: the counter gains `counts`, one count per cycle
+    kExcursion,    // excursion:   the joint really moves `counts` away and back (triangle)
+    kStuck,        // stuck:       the counter freezes; heartbeat reports `error_bits`
+    kSilence,      // silence:     no frame reaches the bus
+    kDrop,         // drop:        `percent` of cycles lose all their frames
+    kPartial,      // partial:     COUNTS_B is lost
+    kDuplicate,    // duplicate:   COUNTS_A is sent twice
+    kBoardError,   // board_error: the heartbeat reports `error_bits`
+    kReorder,      // reorder:     every other cycle's COUNTS_A/B follow the next cycle's
+    kBadSeq,       // bad_seq:     COUNTS_A/B carry seq + 128
+    kWrongDlc,     // wrong_dlc:   COUNTS_B is sent with DLC 6
+    kDelay,        // delay:       the cycle's frames reach the bus `delay_us` late
+    kErrorFrame,   // error_frame: the controller reports a protocol (bit) error frame
+    kStall,        // stall:       the host stalls: the read reaching start_s blocks duration_s
   };
   Kind kind = Kind::kCountOffset;
   double start_s = 0.0;
   double duration_s = 0.0;
-  int joint = 0;                // 0-based, for the count faults and kStuck
-  std::int64_t counts = 0;      // kCountOffset, kCountRamp, kExcursion
-  double percent = 0.0;         // kDrop
-  std::uint8_t error_bits = 0;  // kBoardError
+  int joint = 0;                // 0-based
+  std::int64_t counts = 0;      // glitch, lost_counts, excursion
+  double percent = 0.0;         // drop
+  std::uint8_t error_bits = 0;  // board_error, stuck
+  int every = 1;                // duplicate, bad_seq, wrong_dlc, error_frame: every Nth cycle
+  double delay_us = 0.0;        // delay
 };
 
-// The fault vocabulary, one list for every simulator: the name each kind has
-// in a config (source.sim.faults[].kind) and for exodaq-board-sim.
+// Which SimFault fields a kind reads (SimFaultName::params).
+namespace fault_param {
+inline constexpr std::uint32_t kJoint = 1U << 0;
+inline constexpr std::uint32_t kCounts = 1U << 1;
+inline constexpr std::uint32_t kPercent = 1U << 2;
+inline constexpr std::uint32_t kErrorBits = 1U << 3;
+inline constexpr std::uint32_t kEvery = 1U << 4;
+inline constexpr std::uint32_t kDelay = 1U << 5;
+}  // namespace fault_param
+
+// The fault vocabulary, one table for every simulator: the name each kind has
+// in a config (source.sim.faults[].kind) and for exodaq-board-sim --fault,
+// and the parameters it takes.
 struct SimFaultName {
   SimFault::Kind kind;
   std::string_view name;
+  std::uint32_t params = 0;  // fault_param bits
 };
 std::span<const SimFaultName> sim_fault_names() noexcept;
 std::string_view sim_fault_name(SimFault::Kind kind) noexcept;
+const SimFaultName* find_sim_fault(std::string_view name) noexcept;  // nullptr: unknown
+
+// Bits of SimCycle::applied: one per fault kind (its enum value), and the
+// random loss of SimOptions::loss_percent / partial_percent.
+constexpr std::uint32_t fault_bit(SimFault::Kind kind) noexcept {
+  return 1U << static_cast<unsigned>(kind);
+}
+inline constexpr std::uint32_t kRandomLossBit = 1U << 30;
+inline constexpr std::uint32_t kRandomPartialBit = 1U << 31;
 
 struct SimOptions {
   std::uint64_t seed = 1;              // seeds motion, jitter, loss; same seed → same stream
@@ -306,19 +324,34 @@ struct SimOptions {
   std::vector<SimFault> faults;  // scripted faults (sim_rig.hpp SimFault)
 };
 
+// What one simulated cycle was, before the faults touched the frames.
+struct SimCycle {
+  std::int64_t k = -1;
+  double t_s = 0.0;                                 // sampling instant
+  Vec6 position{};                                  // true joint angles (motion + excursions)
+  std::array<std::int64_t, kChannelCount> count{};  // true counts by board channel
+  std::uint32_t applied = 0;  // fault_bit() of each fault that changed this cycle
+};
+
+// The rig, one sampling cycle per step(). Throws std::invalid_argument on
+// inconsistent options (see SimMotion and SimEncoders; loss/partial outside
+// [0, 100], invalid protocol IDs, a fault with a bad joint, window, percent,
+// `every` < 1 or a delay of 4 periods or more).
 class SimRig {
  public:
-  // Throws std::invalid_argument on inconsistent options (see SimMotion; also
-  // channels not a permutation, direction not ±1, cpr or gear not positive,
-  // loss/partial outside [0, 100], invalid protocol IDs).
+  static constexpr int kMaxDelayPeriods = 4;
+
   explicit SimRig(const SimOptions& options);
 
-  // Simulates cycle k (call with k = 0, 1, 2, … in order): samples the motion
-  // at t_k, updates the encoders and writes the cycle's frames to `out`,
-  // stamped with t_k on the given time base. Returns how many frames reach
-  // the bus (0 for a lost cycle).
+  // Simulates cycle k (k = 0, 1, 2, … in order): samples the motion at t_k,
+  // updates the encoders and writes the frames the board puts on the bus for
+  // it to `out`, stamped with the instant each reaches the bus on the given
+  // time base (t_k, plus any scripted delay). Returns how many (0: lost).
   int step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_ns,
            std::int64_t wall_offset_ns) noexcept;
+  const SimCycle& last_cycle() const noexcept { return cycle_; }
+  // How many cycles had each bit of SimCycle::applied set so far (by bit number).
+  const std::array<std::int64_t, 32>& applied_counts() const noexcept { return applied_; }
 
   std::int64_t sample_offset_ns(std::int64_t k) const noexcept;  // t_k in ns
   double sample_time_s(std::int64_t k) const noexcept {
@@ -337,10 +370,21 @@ class SimRig {
   const SimOptions& options() const noexcept { return options_; }
 
  private:
+  struct CycleFaults;  // what the active faults do to one cycle (sim_rig.cpp)
+
+  CycleFaults active_faults(std::int64_t k, double t_s) const noexcept;
+  BoardCycle sample_board(double t_s) noexcept;
+  void apply_counter_faults(std::int64_t k, double t_s, CycleFaults& f, BoardCycle& c) noexcept;
+  int apply_bus_faults(std::int64_t k, CycleFaults& f, SimBoard::Frames& out, int n) noexcept;
+  int reorder(bool hold, SimBoard::Frames& out, int n) noexcept;
+  std::int64_t start_cycle(const SimFault& f) const noexcept;
+
   SimOptions options_;
   SimMotion motion_;
   SimEncoders encoders_;
   SimBoard board_;
+  SimCycle cycle_{};
+  std::array<std::int64_t, 32> applied_{};
   std::array<std::int64_t, kJoints> stuck_count_{};
   std::array<bool, kJoints> stuck_{};
   std::uint8_t base_errors_ = 0;

@@ -1,52 +1,16 @@
 #pragma once
 // The `socketcan` encoder backend: protocol v1 frames from an encoder interface
 // board on a CAN interface (can0 on the rig, vcan0 in tests), decoded by the
-// same BoardDecoder the sim backend uses. The socket sits behind CanPort
-// (can_port.hpp) so tests drive this class with an in-memory port.
-//
-// One read() per loop cycle, at the cycle's deadline (its start):
-//   1. If the port is down: at most once per second, try to re-open it (a few
-//      non-blocking syscalls: if_nametoindex, socket, setsockopt, bind,
-//      SIOCGIFFLAGS — done on the loop thread, bounded, never blocking).
-//      Still down: a kMissing sample with kBusError, bus state kDown.
-//   2. Sync master: send SYNC (non-blocking; EAGAIN/ENOBUFS are counted in
-//      sync_send_failures, never waited for).
-//   3. Receive every queued frame into the decoder, then wait (ppoll) for more
-//      until the cycle's sample is complete or the poll deadline passes:
-//      deadline_mono_ns + read_deadline_us, never later than the end of the
-//      cycle minus a guard of period/10.
-//        sync master: complete = a full cycle whose count frames were received
-//                     after this cycle's SYNC was sent;
-//        free-running board: complete = any full cycle not yet delivered.
-//   4. Deliver the newest complete cycle. Older complete cycles still queued
-//      (the board got ahead, or a late answer to an earlier SYNC) are
-//      superseded: counted in superseded_samples, their event flags and index
-//      latches merged into the delivered sample so nothing is lost but the
-//      intermediate counts (which the unwrapping bridges). At the poll
-//      deadline with only one half of a cycle (sync master; free-run: when the
-//      half is older than half a period) the half is flushed as kPartial.
-//      Nothing at all: kMissing (make_missing) with the cycle's stamps.
-//
-// Time stamps. A frame's wall_ns is the kernel's software receive timestamp
-// (CLOCK_REALTIME, taken when the frame entered the network stack). Its
-// mono_ns = wall_ns − offset, offset = CLOCK_REALTIME − CLOCK_MONOTONIC
-// measured at each read() (mono/wall/mono bracket; the tightest bracket is
-// kept until the offset moves by more than bracket + 1 µs, i.e. a clock step).
-// The sample carries both (BoardDecoder: stamps of the count frame that
-// completed the cycle). The daemon maps mono_ns back to utime with its own
-// offset estimate, so while the wall clock is steady the published utime is
-// the kernel receive timestamp (to within the two offset estimates' error,
-// well under 1 µs on real hardware: ±1 µs after truncation to µs), and
-// encoder_raw_t.wall_ns carries the kernel stamp exactly. A missing sample is
-// stamped with the cycle's deadline.
-//
-// Interface loss. −ENETDOWN or −ENODEV from any call (or POLLERR) closes the
-// port and sets bus state kDown (samples then carry kBusError: the daemon
-// degrades). Re-open attempts at 1 Hz; on success the bus state returns to
-// kUnknown and becomes kActive with the next frame. Error frames update the bus
-// state (BoardDecoder::on_frame). SO_RXQ_OVFL drops go to add_rx_overflows().
-//
-// read() allocates nothing (frame buffer, decoder queue and stats are members).
+// same BoardDecoder the sim backend uses. The socket and the clocks sit behind
+// CanPort (can_port.hpp) so tests drive this class with an in-memory port.
+// One read() per loop cycle at its deadline: re-open a lost port (at most once
+// per reopen_interval_ns, non-blocking), send SYNC as sync master, receive and
+// wait until the cycle is complete or the poll deadline (deadline +
+// read_deadline_ns, never past the cycle's end minus a tenth), deliver the
+// newest complete cycle (older ones superseded), flush a lone half as PARTIAL,
+// else MISSING. Samples carry the kernel receive stamps. read() allocates
+// nothing. The whole behaviour (time stamps, interface loss and recovery):
+// docs/can-protocol.md ("The socketcan backend").
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -111,6 +75,11 @@ class SocketCanSource final : public EncoderSource {
   void feed(const can::CanFrame& frame) noexcept;
   bool have_current(std::int64_t sync_mono) const noexcept;
   bool take_newest(EncoderSample& out) noexcept;
+  std::int64_t send_sync(std::int64_t now) noexcept;  // the SYNC's send time (0: not master)
+  void receive_until(std::int64_t poll_deadline, std::int64_t sync_mono) noexcept;
+  // Closes a lone half as PARTIAL when it is due; true when `out` holds a sample.
+  bool flush_partial(bool got, std::int64_t sync_mono, std::int64_t period,
+                     EncoderSample& out) noexcept;
 
   SocketCanSourceConfig config_;
   std::unique_ptr<CanPort> port_;

@@ -1,8 +1,12 @@
 #pragma once
 // What every backend needs to know about the rig's encoders, from the
-// encoders section, the model and the calibration (plain values).
+// encoders section, the model and the calibration (plain values; the chain
+// for the sim's task planning).
 #include <array>
 #include <cstdint>
+
+#include "exodaq/kinematics/chain.hpp"
+#include "exodaq/kinematics/rig_kinematics.hpp"
 
 namespace exodaq::drivers {
 
@@ -21,6 +25,8 @@ struct SourceContext {
   std::int64_t period_ns = 1'000'000;
   std::int64_t counts_per_rev = 10000;
   std::array<SourceJointContext, 6> joints{};
+  kin::Chain chain;                // the model (the sim plans task motion with it)
+  kin::RigKinematicsConfig rig{};  // the model's elbow frame and shoulder joints
 };
 
 }  // namespace exodaq::drivers

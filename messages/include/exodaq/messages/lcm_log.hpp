@@ -4,8 +4,9 @@
 // timestamp in us, channel length, data length), the channel and the data.
 // One reader and one writer for every part of exodaq; errors name the file
 // and the byte offset. Off the loop thread only (they allocate and block).
+// Both move the file in chunks of 256 KiB through one buffer of their own
+// (docs/replay.md, "Memory and speed").
 #include <cstdint>
-#include <cstdio>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -74,19 +75,21 @@ class LogReader {
   const std::string& path() const noexcept { return path_; }
 
  private:
-  bool read_header(std::int64_t at);
-  bool resync(std::int64_t from);
+  bool fill(std::int64_t at, std::size_t bytes);
+  bool read_event(std::int64_t at, LogEvent& out);
+  bool resync(std::int64_t from, LogEvent& out);
 
   std::string path_;
-  std::FILE* f_ = nullptr;
+  int fd_ = -1;
   std::int64_t size_ = 0;
-  std::int64_t pos_ = 0;   // where the next event starts
-  std::int64_t tell_ = 0;  // where the FILE stands (-1: unknown)
+  std::int64_t pos_ = 0;  // where the next event starts
   std::int64_t events_ = 0;
-  std::int64_t number_ = 0;
-  std::int64_t timestamp_ = 0;
-  std::string channel_;
-  std::vector<std::uint8_t> data_;
+  // A window of the file: bytes [window_at_, window_at_ + window_bytes_) in
+  // buffer_, read in chunks of the buffer's size (larger only for an event
+  // that does not fit).
+  std::vector<std::uint8_t> buffer_;
+  std::int64_t window_at_ = 0;
+  std::size_t window_bytes_ = 0;
   std::vector<LogDamage> damage_;
 };
 
@@ -110,9 +113,14 @@ class LogWriter {
   std::int64_t events() const noexcept { return number_; }
 
  private:
+  void flush();
+  void write_all(const void* data, std::size_t size);
+
   std::string path_;
   std::unique_ptr<files::OutputFile> out_;
   std::int64_t number_ = 0;
+  std::vector<std::uint8_t> buffer_;  // events not yet written, written in large chunks
+  std::size_t buffered_ = 0;
 };
 
 // The channels of a log and their event counts, from the headers only.

@@ -17,14 +17,22 @@
 //            the CAN codec and assembled by the BoardDecoder, exactly as the
 //            SocketCAN backend does live. Cycles the board skipped (sequence
 //            gaps) are replayed as missing samples. Timestamps are the file's
-//            (wall clock); mono_ns = wall_ns. Malformed lines are kept in
-//            issues() with their line number, counted in stats().bad_frames,
-//            and the rest of the file is processed.
+//            (wall clock); mono_ns = wall_ns. Malformed lines (and lines over
+//            4096 characters) are kept in issues() with their line number,
+//            counted in stats().bad_frames, and the rest of the file is
+//            processed.
 //
-// Everything is loaded and decoded in start() (which allocates); read() copies
-// one prepared sample and allocates nothing. next_sample_mono_ns() is the
-// recorded instant of the next sample, so the loop can be paced by the
-// recording or run flat out. Same file in, same samples out.
+// The input is read as a stream, never held whole: start() reads it once to
+// count (summary(), issues() and the final stats() are complete before the
+// first cycle), then a reader thread reads it again, decoding ahead into a
+// ring of buffer_samples entries (rounded up to a power of two) allocated in
+// start(); read() takes one entry and allocates nothing. Paced (speed > 0),
+// read() finds the ring full and waits only if the disk falls a whole ring
+// behind; flat out, it waits for the reader when the ring runs dry
+// (docs/replay.md, "Memory and speed").
+// next_sample_mono_ns() is the recorded instant of the next sample, so the
+// loop can be paced by the recording or run flat out. Same file in, same
+// samples out; the file must not change while it is replayed.
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -40,7 +48,7 @@
 namespace exodaq::drivers {
 
 namespace replay {
-struct Recording;
+struct State;
 }  // namespace replay
 
 enum class ReplayFormat : std::uint8_t { kLcm, kCandump };
@@ -61,26 +69,31 @@ struct ReplayLoadSummary {
   std::int64_t missing = 0;             // of which present == false
   std::int64_t skipped_warmup = 0;      // lcm: the daemon's all-zero start-up messages
   std::int64_t skipped_other_runs = 0;  // lcm: raw messages of other daemon runs in the log
-  std::int64_t loop_flags_from_joint_state = 0;  // lcm: samples that got recorded loop bits
-  std::int64_t bad_lines = 0;                    // candump: malformed lines
-  std::int64_t frames = 0;                       // candump: frames fed to the decoder
-  double duration_s = 0.0;                       // last minus first sample instant
+  std::int64_t bad_lines = 0;           // candump: malformed lines
+  std::int64_t frames = 0;              // candump: frames fed to the decoder
+  double duration_s = 0.0;              // last minus first sample instant
 };
 
 class ReplaySource final : public EncoderSource {
  public:
+  static constexpr std::size_t kBufferSamples = 8192;  // 8 s at 1 kHz, 640 KiB
+
   // `context` gives the period (for missing cycles) and the joint -> channel
   // map (to read recorded per-joint flags). Throws std::runtime_error for an
   // unknown format name; the file is opened in start().
-  ReplaySource(const ReplaySettings& settings, const SourceContext& context);
+  ReplaySource(const ReplaySettings& settings, const SourceContext& context,
+               std::size_t buffer_samples = kBufferSamples);
   ~ReplaySource() override;
 
   std::string_view name() const noexcept override { return "replay"; }
-  // Loads and decodes the whole input (idempotent: a second call does not
-  // reload, it rewinds). Throws std::runtime_error naming the file on any
-  // error that prevents a replay (unreadable, no raw channel, no sample).
+  // Reads the input through once and starts the reader (a second call does
+  // not count again, it rewinds). Throws std::runtime_error naming the file
+  // on any error that prevents a replay (unreadable, no raw channel, no
+  // sample). A read error later ends the stream and joins issues().
   void start() override;
   ReadStatus read(const CycleTime& time, EncoderSample& out) noexcept override;
+  // Stops the reader; read() then gives what the ring holds, then the end.
+  void stop() noexcept override;
   std::optional<double> recording_speed() const noexcept override { return settings_.speed; }
   std::int64_t next_sample_mono_ns() const noexcept override;
   std::int64_t recorded_seq() const noexcept override { return last_seq_; }
@@ -91,17 +104,26 @@ class ReplaySource final : public EncoderSource {
   const std::vector<ReplayIssue>& issues() const noexcept;
   std::int64_t run_id() const noexcept { return summary().run_id; }
   std::int64_t sample_count() const noexcept;
-  std::int64_t position() const noexcept { return static_cast<std::int64_t>(next_); }
+  std::int64_t position() const noexcept { return position_; }
+  // The read-ahead ring: its size in samples, and how often read() or
+  // next_sample_mono_ns() found it empty and waited for the reader.
+  std::size_t buffer_capacity() const noexcept;
+  std::int64_t buffer_waits() const noexcept;
 
   // "lcm" or "candump" from the file's first bytes (the LCM log magic or a
   // line starting with '('); throws when it is neither.
   static ReplayFormat detect_format(const std::string& path);
 
  private:
+  void load();
+  std::size_t batch() const noexcept;
+  void report_stream_error() noexcept;
+
   ReplaySettings settings_;
   SourceContext context_;
-  std::unique_ptr<replay::Recording> recording_;
-  std::size_t next_ = 0;
+  std::size_t buffer_samples_;
+  std::unique_ptr<replay::State> state_;
+  std::int64_t position_ = 0;
   std::int64_t last_seq_ = -1;
   SourceStats stats_{};
 };

@@ -1,0 +1,54 @@
+#pragma once
+// A cycle's result as LCM messages: palm_pose_t, joint_state_t and (when
+// configured) encoder_raw_t, encoded straight into the publisher's slots.
+// Every string is set at construction; encoding allocates nothing.
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "exodaq/core/pipeline.hpp"
+#include "exodaq/core/publisher.hpp"
+#include "exodaq/drivers/encoder_sample.hpp"
+#include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/joint_state_t.hpp"
+#include "exodaq/palm_pose_t.hpp"
+
+namespace exodaq::core {
+
+// Encodes `message` into a publisher slot and commits it; a full ring drops
+// it (the publisher counts the drop).
+template <typename Msg>
+void publish_encoded(Publisher& publisher, msg::Kind channel, const Msg& message,
+                     std::int64_t utime_us) noexcept {
+  OutgoingMessage* slot = publisher.acquire();
+  if (slot == nullptr) return;
+  const int n = message.encode(slot->bytes.data(), 0, static_cast<int>(slot->bytes.size()));
+  if (n < 0) return;  // cannot happen with checked sizes; the slot is simply not committed
+  slot->channel = channel;
+  slot->size = static_cast<std::uint32_t>(n);
+  slot->utime_us = utime_us;
+  publisher.commit();
+}
+
+class MessageEncoder {
+ public:
+  MessageEncoder(const std::array<std::string, kJointCount>& joint_names, std::int64_t run_id,
+                 bool publish_raw);
+
+  // Start-up: encodes every message once into scratch memory (lcm-gen's hashes
+  // are initialised on first use). Throws if one does not fit a slot.
+  void warm_up() const;
+
+  // The palm pose first (what a BMI decoder waits for), then the joints, then
+  // the raw sample; wakes the publisher once.
+  void publish(const CycleResult& result, const drivers::EncoderSample& sample,
+               Publisher& publisher) noexcept;
+
+ private:
+  bool publish_raw_;
+  exodaq::joint_state_t joint_{};
+  exodaq::palm_pose_t palm_{};
+  exodaq::encoder_raw_t raw_{};
+};
+
+}  // namespace exodaq::core

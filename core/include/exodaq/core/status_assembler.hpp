@@ -1,0 +1,76 @@
+#pragma once
+// The status window: each cycle's timing and facts are gathered; at the
+// window's end the service state follows (ServiceStateMachine) and status_t is
+// assembled from the window, the pipeline's joints, the source's counters and
+// the clock. Loop thread; allocation-free after construction.
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "exodaq/core/clock.hpp"
+#include "exodaq/core/health.hpp"
+#include "exodaq/core/pipeline.hpp"
+#include "exodaq/drivers/encoder_sample.hpp"
+#include "exodaq/status_t.hpp"
+
+namespace exodaq::core {
+
+struct StatusSettings {
+  std::string rig;
+  std::string source;  // the source's name
+  std::array<std::string, kJointCount> joint_names;
+  std::int64_t run_id = 0;
+  ServiceStateMachine::Settings state;
+};
+
+// What the loop knows as a window closes.
+struct WindowEnd {
+  std::int64_t now_mono_ns = 0;  // the window closes on the cycle's own clock
+  std::int64_t seq = 0;          // the window's last cycle
+  std::int64_t utime_us = 0;     // ... and its utime
+  std::int64_t overruns = 0;     // totals since start
+  std::int64_t cycles = 0;
+  std::int64_t publish_failures = 0;
+  drivers::SourceStats source;
+  std::int64_t utime_correction_ns = 0;  // TimeBase
+  std::int64_t clock_steps = 0;
+};
+
+class StatusAssembler {
+ public:
+  // `pipeline` and `clock` are read when a window closes; both must outlive this.
+  StatusAssembler(const StatusSettings& settings, const Pipeline& pipeline,
+                  const ClockShared& clock);
+
+  // Start-up: checks that the largest status_t fits a publisher slot (throws if not).
+  void warm_up();
+
+  // Every cycle. `clock_hold`: unsynchronised under require_sync: hold.
+  void count_cycle(const CycleResult& result, bool present, bool clock_hold,
+                   std::int64_t deadline_ns, std::int64_t wake_ns) noexcept;
+  void count_work(std::int64_t work_ns) noexcept { work_.add(work_ns); }
+
+  // Closes the window: returns the next state and assembles message(); the
+  // next window starts empty.
+  ServiceState close_window(ServiceState current, const WindowEnd& end) noexcept;
+  const exodaq::status_t& message() const noexcept { return status_; }
+
+ private:
+  void fill_timing(const WindowEnd& end) noexcept;
+  void fill_counters(const WindowEnd& end) noexcept;
+  void fill_joints_and_text(ServiceState state, std::int64_t overruns) noexcept;
+
+  const Pipeline& pipeline_;
+  const ClockShared& clock_;
+  ServiceStateMachine state_machine_;
+  exodaq::status_t status_{};
+  TimingWindow period_;
+  TimingWindow lateness_;
+  TimingWindow work_;
+  WindowFacts facts_;
+  std::int64_t last_wake_ns_ = 0;
+  std::int64_t last_sample_wake_ns_ = 0;
+  std::int64_t window_overruns_start_ = 0;
+};
+
+}  // namespace exodaq::core

@@ -1,0 +1,156 @@
+#include "exodaq/core/status_assembler.hpp"
+
+#include <cstdio>
+#include <stdexcept>
+#include <vector>
+
+#include "exodaq/core/publisher.hpp"
+
+namespace exodaq::core {
+
+StatusAssembler::StatusAssembler(const StatusSettings& settings, const Pipeline& pipeline,
+                                 const ClockShared& clock)
+    : pipeline_(pipeline), clock_(clock), state_machine_(settings.state) {
+  for (int i = 0; i < kJointCount; ++i)
+    status_.joint_name[i] = settings.joint_names[static_cast<std::size_t>(i)];
+  status_.run_id = settings.run_id;
+  status_.rig = settings.rig;
+  status_.source = settings.source;
+  // The summary text is assigned within this capacity: it never reallocates.
+  status_.message.reserve(256);
+  status_.message.assign(255, ' ');
+  status_.message.clear();
+}
+
+void StatusAssembler::warm_up() {
+  std::vector<std::uint8_t> scratch(kMaxMessageBytes);
+  status_.message.assign(255, 'x');
+  const bool fits = status_.encode(scratch.data(), 0, static_cast<int>(scratch.size())) >= 0;
+  status_.message.clear();
+  if (!fits) throw std::runtime_error("status message larger than a publisher slot");
+}
+
+void StatusAssembler::count_cycle(const CycleResult& result, bool present, bool clock_hold,
+                                  std::int64_t deadline_ns, std::int64_t wake_ns) noexcept {
+  ++facts_.cycles;
+  if (present) {
+    ++facts_.samples_present;
+    last_sample_wake_ns_ = wake_ns;
+  }
+  if (result.valid) ++facts_.valid_poses;
+  facts_.clock_hold = facts_.clock_hold || clock_hold;
+  facts_.sample_flags_or |= result.sample_flags;
+  for (int i = 0; i < kJointCount; ++i) {
+    facts_.joint_flags_or[static_cast<std::size_t>(i)] |=
+        result.joints[static_cast<std::size_t>(i)].flags;
+  }
+  if (last_wake_ns_ != 0) period_.add(wake_ns - last_wake_ns_);
+  last_wake_ns_ = wake_ns;
+  lateness_.add(wake_ns - deadline_ns);
+}
+
+ServiceState StatusAssembler::close_window(ServiceState current, const WindowEnd& end) noexcept {
+  facts_.overruns = end.overruns - window_overruns_start_;
+  window_overruns_start_ = end.overruns;
+  facts_.bus_state = end.source.bus_state;
+  bool all_homed = true;
+  for (int i = 0; i < kJointCount; ++i) all_homed = all_homed && pipeline_.joint(i).reading().homed;
+  facts_.all_homed = all_homed;
+  const std::int64_t since_sample_ms =
+      last_sample_wake_ns_ == 0 ? 0 : (end.now_mono_ns - last_sample_wake_ns_) / 1'000'000;
+  const ServiceState next = state_machine_.next(current, facts_, since_sample_ms);
+
+  status_.utime = end.utime_us;
+  status_.mono_ns = end.now_mono_ns;
+  status_.seq = end.seq;
+  status_.state = static_cast<std::int8_t>(next);
+  status_.window_cycles = facts_.cycles;
+  fill_timing(end);
+  fill_counters(end);
+  fill_joints_and_text(next, end.overruns);
+
+  period_.clear();
+  lateness_.clear();
+  work_.clear();
+  facts_ = WindowFacts{};
+  return next;
+}
+
+void StatusAssembler::fill_timing(const WindowEnd& end) noexcept {
+  status_t& s = status_;
+  const Percentiles period = period_.percentiles();
+  const Percentiles late = lateness_.percentiles();
+  const Percentiles work = work_.percentiles();
+  s.period_p50_us = period.p50_us;
+  s.period_p99_us = period.p99_us;
+  s.period_max_us = period.max_us;
+  s.lateness_p50_us = late.p50_us;
+  s.lateness_p99_us = late.p99_us;
+  s.lateness_max_us = late.max_us;
+  s.work_p50_us = work.p50_us;
+  s.work_p99_us = work.p99_us;
+  s.work_max_us = work.max_us;
+  s.overruns = end.overruns;
+  s.cycles = end.cycles;
+  s.publish_failures = end.publish_failures;
+}
+
+void StatusAssembler::fill_counters(const WindowEnd& end) noexcept {
+  status_t& s = status_;
+  const drivers::SourceStats& stats = end.source;
+  s.frames = stats.frames;
+  s.bad_frames = stats.bad_frames;
+  s.missing_samples = stats.missing_samples;
+  s.seq_gaps = stats.seq_gaps;
+  s.duplicates = stats.duplicates;
+  s.out_of_order = stats.out_of_order;
+  s.bus_errors = stats.bus_errors;
+  s.rx_overflows = stats.rx_overflows;
+  s.bus_state = static_cast<std::int8_t>(stats.bus_state);
+  s.board_errors = static_cast<std::int32_t>(stats.board_errors);
+  s.clock_synchronised = clock_.synchronised.load(std::memory_order_relaxed);
+  s.clock_est_error_us = clock_.est_error_us.load(std::memory_order_relaxed);
+  s.clock_max_error_us = clock_.max_error_us.load(std::memory_order_relaxed);
+  s.clock_offset_us = clock_.ntp_offset_us.load(std::memory_order_relaxed);
+  s.utime_correction_us = static_cast<double>(end.utime_correction_ns) / 1000.0;
+  s.clock_steps = end.clock_steps;
+}
+
+void StatusAssembler::fill_joints_and_text(ServiceState state, std::int64_t overruns) noexcept {
+  status_t& s = status_;
+  int homed = 0;
+  int worst_joint = -1;
+  for (int i = 0; i < kJointCount; ++i) {
+    const JointTracker& j = pipeline_.joint(i);
+    const std::uint32_t flags = facts_.joint_flags_or[static_cast<std::size_t>(i)];
+    s.homing[i] = static_cast<std::int8_t>(j.reading().homing);
+    s.joint_flags[i] = static_cast<std::int32_t>(flags);
+    s.glitches[i] = j.counters().glitches;
+    s.lost_count_events[i] = j.counters().lost_count_events;
+    s.stale_events[i] = j.counters().stale_events;
+    s.out_of_range_events[i] = j.counters().out_of_range_events;
+    if (j.reading().homed) ++homed;
+    const std::uint32_t faults = flags & joint_flag::kFaults & ~joint_flag::kUnhomed;
+    if (faults != 0 && worst_joint < 0) worst_joint = i;
+  }
+  // One line for people: snprintf into a stack buffer, assigned within the
+  // reserved capacity.
+  char text[200];
+  const double valid_pct =
+      facts_.cycles > 0 ? 100.0 * facts_.valid_poses / static_cast<double>(facts_.cycles) : 0.0;
+  int n = std::snprintf(text, sizeof(text), "%s: %d/%d homed, %.1f%% valid, %lld overruns",
+                        state_name(state), homed, kJointCount, valid_pct,
+                        static_cast<long long>(overruns));
+  if (worst_joint >= 0 && n > 0 && n < static_cast<int>(sizeof(text))) {
+    n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
+                       "; joint %s flags 0x%x", s.joint_name[worst_joint].c_str(),
+                       facts_.joint_flags_or[static_cast<std::size_t>(worst_joint)]);
+  }
+  if ((facts_.sample_flags_or & drivers::sample_flag::kClockUnsync) != 0 && n > 0 &&
+      n < static_cast<int>(sizeof(text))) {
+    std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n), "; clock unsynchronised");
+  }
+  s.message.assign(text);
+}
+
+}  // namespace exodaq::core

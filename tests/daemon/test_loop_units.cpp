@@ -1,0 +1,352 @@
+// The loop's parts on their own: the time bases, the state machine's
+// hysteresis, the message encoder, the status assembler, the event ring and
+// the reload hand-over. Each allocates nothing where the loop calls it.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "alloc_counter.hpp"
+#include "exodaq/config/service_config.hpp"
+#include "exodaq/core/builder.hpp"
+#include "exodaq/core/config_handover.hpp"
+#include "exodaq/core/health.hpp"
+#include "exodaq/core/loop_events.hpp"
+#include "exodaq/core/message_encoder.hpp"
+#include "exodaq/core/status_assembler.hpp"
+#include "exodaq/core/time_base.hpp"
+
+using namespace exodaq;
+namespace flag = drivers::sample_flag;
+
+namespace {
+constexpr std::int64_t kMs = 1'000'000;
+
+config::ServiceConfig sim_config() {
+  return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+}
+
+// A source that only carries a recording's speed and seq.
+class Recording final : public drivers::EncoderSource {
+ public:
+  std::optional<double> speed = 1.0;
+  std::int64_t seq = -1;
+  std::string_view name() const noexcept override { return "recording"; }
+  void start() override {}
+  drivers::ReadStatus read(const drivers::CycleTime&, drivers::EncoderSample&) noexcept override {
+    return drivers::ReadStatus::kEndOfStream;
+  }
+  std::optional<double> recording_speed() const noexcept override { return speed; }
+  std::int64_t recorded_seq() const noexcept override { return seq; }
+  drivers::SourceStats stats() const noexcept override { return {}; }
+};
+
+class Live final : public drivers::EncoderSource {
+ public:
+  std::string_view name() const noexcept override { return "live"; }
+  void start() override {}
+  drivers::ReadStatus read(const drivers::CycleTime&, drivers::EncoderSample&) noexcept override {
+    return drivers::ReadStatus::kNoSample;
+  }
+  drivers::SourceStats stats() const noexcept override { return {}; }
+};
+
+// Keeps every message handed over, in order.
+class KeepingSink final : public core::MessageSink {
+ public:
+  std::vector<core::OutgoingMessage> kept;
+  bool publish(const std::string&, const core::OutgoingMessage& m) noexcept override {
+    kept.push_back(m);
+    return true;
+  }
+};
+
+template <typename Msg>
+Msg decode(const core::OutgoingMessage& m) {
+  Msg out;
+  EXPECT_GT(out.decode(m.bytes.data(), 0, static_cast<int>(m.size)), 0);
+  return out;
+}
+
+core::WindowFacts clean_window() {
+  core::WindowFacts f;
+  f.cycles = 100;
+  f.samples_present = 100;
+  f.valid_poses = 100;
+  f.all_homed = true;
+  return f;
+}
+}  // namespace
+
+TEST(TimeBase, TheSourceChoosesLiveOrRecordedTime) {
+  core::ClockShared clock;
+  Live live;
+  Recording recording;
+  EXPECT_FALSE(core::make_time_base(live, clock, {}, kMs)->recorded());
+  EXPECT_TRUE(core::make_time_base(recording, clock, {}, kMs)->recorded());
+}
+
+TEST(TimeBase, LiveSkipsTheDeadlinesACycleOverran) {
+  core::ClockShared clock;
+  core::LiveTimeBase live(clock, {}, kMs);
+  const std::int64_t next = 50 * kMs;
+  EXPECT_EQ(live.overrun(next - 1, next), 0);
+  EXPECT_EQ(live.overrun(next, next), 0);
+  EXPECT_EQ(live.overrun(next + 1, next), 1);
+  EXPECT_EQ(live.overrun(next + kMs, next), 2);
+  EXPECT_EQ(live.overrun(next + 5 * kMs / 2, next), 3);
+  EXPECT_EQ(live.seq(41), 41);
+}
+
+TEST(TimeBase, LiveStampsWallTimeAndFlagsAnUnsynchronisedClockByPolicy) {
+  core::ClockShared clock;
+  clock.offset_ns = 1'700'000'000'000'000'000LL;
+  clock.offset_generation = 1;
+  clock.synchronised = false;
+  config::ClockPolicy policy;
+  policy.require_sync = config::RequireSync::kMark;
+  core::LiveTimeBase live(clock, policy, kMs);
+  drivers::EncoderSample s;
+  s.mono_ns = 5'000 * kMs + 123'456;
+  core::SampleTime t = live.stamp(s);
+  EXPECT_EQ(t.utime_us, (s.mono_ns + clock.offset_ns) / 1000);
+  EXPECT_EQ(t.flags, flag::kClockUnsync);
+  EXPECT_FALSE(t.clock_invalid);
+  EXPECT_FALSE(t.clock_hold);
+  policy.require_sync = config::RequireSync::kHold;
+  live.set_policy(policy);
+  s.mono_ns += kMs;
+  t = live.stamp(s);
+  EXPECT_EQ(t.flags, flag::kClockUnsync);
+  EXPECT_TRUE(t.clock_invalid);
+  EXPECT_TRUE(t.clock_hold);
+  policy.require_sync = config::RequireSync::kIgnore;
+  live.set_policy(policy);
+  s.mono_ns += kMs;
+  t = live.stamp(s);
+  EXPECT_EQ(t.flags, 0U);
+  EXPECT_FALSE(t.clock_invalid);
+  // A 1 s step of the wall clock: detected once, flagged while it is slewed out.
+  clock.offset_ns = clock.offset_ns + 1'000'000'000;
+  clock.offset_generation = 2;
+  s.mono_ns += kMs;
+  t = live.stamp(s);
+  EXPECT_TRUE(t.new_step);
+  EXPECT_EQ(t.flags, flag::kClockStep);
+  EXPECT_TRUE(t.clock_invalid);
+  EXPECT_EQ(live.clock_steps(), 1);
+  EXPECT_LT(live.utime_correction_ns(), -900'000'000);
+  s.mono_ns += kMs;
+  t = live.stamp(s);
+  EXPECT_FALSE(t.new_step);
+  EXPECT_EQ(t.flags, flag::kClockStep);
+}
+
+TEST(TimeBase, RecordedKeepsTheRecordingsTimeSeqAndClockVerdict) {
+  Recording recording;
+  config::ClockPolicy policy;
+  policy.require_sync = config::RequireSync::kMark;
+  core::RecordedTimeBase recorded(recording, 0.0, policy);
+  EXPECT_EQ(recorded.seq(7), 7);  // no recorded seq: the loop's count
+  recording.seq = 1234;
+  EXPECT_EQ(recorded.seq(7), 1234);
+  EXPECT_EQ(recorded.overrun(100 * kMs, kMs), 0);  // a recording never skips
+
+  drivers::EncoderSample s;
+  s.mono_ns = 42;
+  s.wall_ns = 1'700'000'000'123'456'789LL;
+  core::SampleTime t = recorded.stamp(s);
+  EXPECT_EQ(t.utime_us, 1'700'000'000'123'456LL);
+  EXPECT_EQ(t.flags, flag::kReplay);
+  EXPECT_FALSE(t.clock_invalid);
+  s.flags = flag::kClockStep;
+  EXPECT_TRUE(recorded.stamp(s).clock_invalid);
+  s.flags = flag::kClockUnsync;
+  EXPECT_FALSE(recorded.stamp(s).clock_invalid);
+  policy.require_sync = config::RequireSync::kHold;
+  recorded.set_policy(policy);
+  EXPECT_TRUE(recorded.stamp(s).clock_invalid);
+  EXPECT_FALSE(recorded.stamp(s).clock_hold);
+  EXPECT_EQ(recorded.clock_steps(), 0);
+  EXPECT_EQ(recorded.utime_correction_ns(), 0);
+}
+
+TEST(ServiceStateMachine, DegradedRecoversOnlyAfterTenCleanWindows) {
+  core::ServiceStateMachine machine({});
+  using S = core::ServiceState;
+  S s = machine.next(S::kHoming, clean_window(), 0);
+  EXPECT_EQ(s, S::kRunning);
+  core::WindowFacts dirty = clean_window();
+  dirty.overruns = 1;
+  s = machine.next(s, dirty, 0);
+  EXPECT_EQ(s, S::kDegraded);
+  for (int i = 1; i < 10; ++i) {
+    s = machine.next(s, clean_window(), 0);
+    ASSERT_EQ(s, S::kDegraded) << "clean window " << i;
+  }
+  EXPECT_EQ(machine.next(s, clean_window(), 0), S::kRunning);
+  EXPECT_EQ(machine.next(S::kStopping, dirty, 10'000), S::kStopping);
+}
+
+TEST(ServiceStateMachine, ARecordingsWindowWithSamplesIsNeverAFault) {
+  core::WindowFacts bus_off = clean_window();
+  bus_off.bus_state = drivers::BusState::kOff;
+  core::ServiceStateMachine live({});
+  EXPECT_EQ(live.next(core::ServiceState::kRunning, bus_off, 0), core::ServiceState::kFault);
+  core::ServiceStateMachine recorded({.hold_fault_while_samples = true});
+  EXPECT_EQ(recorded.next(core::ServiceState::kRunning, bus_off, 0), core::ServiceState::kRunning);
+  bus_off.samples_present = 0;
+  EXPECT_EQ(recorded.next(core::ServiceState::kRunning, bus_off, 0), core::ServiceState::kFault);
+}
+
+TEST(MessageEncoder, PalmFirstThenJointsThenRawAllocatingNothing) {
+  const auto cfg = sim_config();
+  const auto acq_config = core::make_acquisition_config(cfg);
+  auto sink = std::make_unique<KeepingSink>();
+  KeepingSink* kept = sink.get();
+  core::Publisher publisher(std::move(sink), "P_");
+  for (const bool raw : {true, false}) {
+    core::MessageEncoder encoder(acq_config.joint_names, 77, raw);
+    encoder.warm_up();
+    core::CycleResult r;
+    r.seq = 9;
+    r.mono_ns = 123 * kMs;
+    r.utime_us = 1'700'000'000'000'000LL;
+    r.valid = true;
+    r.pose.palm_position = {0.1, 0.2, 0.3};
+    r.joints[2].position_rad = 0.5;
+    r.joints[2].flags = core::joint_flag::kStale;
+    drivers::EncoderSample sample;
+    sample.present = true;
+    sample.count16[4] = 4321;
+    kept->kept.clear();
+    kept->kept.reserve(8);
+    {
+      test::AllocationScope scope;
+      encoder.publish(r, sample, publisher);
+      EXPECT_EQ(scope.count(), 0u);
+    }
+    publisher.drain();
+    ASSERT_EQ(kept->kept.size(), raw ? 3U : 2U);
+    EXPECT_EQ(kept->kept[0].channel, msg::Kind::kPalmPose);
+    EXPECT_EQ(kept->kept[1].channel, msg::Kind::kJointState);
+    const auto palm = decode<exodaq::palm_pose_t>(kept->kept[0]);
+    EXPECT_EQ(palm.seq, 9);
+    EXPECT_EQ(palm.run_id, 77);
+    EXPECT_TRUE(palm.valid);
+    EXPECT_DOUBLE_EQ(palm.position[2], 0.3);
+    const auto js = decode<exodaq::joint_state_t>(kept->kept[1]);
+    EXPECT_EQ(js.utime, r.utime_us);
+    EXPECT_EQ(js.mono_ns, r.mono_ns);
+    EXPECT_EQ(js.name[2], acq_config.joint_names[2]);
+    EXPECT_DOUBLE_EQ(js.position[2], 0.5);
+    EXPECT_EQ(js.flags[2], static_cast<std::int32_t>(core::joint_flag::kStale));
+    for (const auto& m : kept->kept) EXPECT_EQ(m.utime_us, r.utime_us);
+    if (raw) {
+      EXPECT_EQ(kept->kept[2].channel, msg::Kind::kEncoderRaw);
+      const auto er = decode<exodaq::encoder_raw_t>(kept->kept[2]);
+      EXPECT_EQ(er.seq, 9);
+      EXPECT_EQ(static_cast<std::uint16_t>(er.count16[4]), 4321);
+    }
+  }
+}
+
+TEST(StatusAssembler, AWindowBecomesAStatusAndTheNextWindowStartsEmpty) {
+  const auto cfg = sim_config();
+  const auto pipeline_config = core::make_pipeline_config(cfg);
+  const core::Pipeline pipeline(*pipeline_config);
+  core::ClockShared clock;
+  clock.synchronised = true;
+  clock.est_error_us = 12.5;
+  core::StatusSettings settings;
+  settings.rig = "rig-a";
+  settings.source = "src";
+  settings.joint_names = core::make_acquisition_config(cfg).joint_names;
+  settings.run_id = 5;
+  core::StatusAssembler status(settings, pipeline, clock);
+  status.warm_up();
+  core::CycleResult r;
+  r.joints[1].flags = core::joint_flag::kGlitch;
+  core::WindowEnd end;
+  end.now_mono_ns = 1000 * kMs;
+  end.seq = 99;
+  end.utime_us = 77;
+  end.overruns = 3;
+  end.cycles = 100;
+  end.source.missing_samples = 4;
+  end.utime_correction_ns = 2500;
+  end.clock_steps = 1;
+  {
+    test::AllocationScope scope;
+    for (int k = 0; k < 100; ++k) {
+      const std::int64_t deadline = 900 * kMs + k * kMs;
+      status.count_cycle(r, k % 10 != 0, false, deadline, deadline + 20'000);
+      status.count_work(7'000);
+    }
+    EXPECT_EQ(status.close_window(core::ServiceState::kStarting, end), core::ServiceState::kHoming);
+    EXPECT_EQ(scope.count(), 0u);
+  }
+  const exodaq::status_t& s = status.message();
+  EXPECT_EQ(s.rig, "rig-a");
+  EXPECT_EQ(s.source, "src");
+  EXPECT_EQ(s.run_id, 5);
+  EXPECT_EQ(s.seq, 99);
+  EXPECT_EQ(s.utime, 77);
+  EXPECT_EQ(s.window_cycles, 100);
+  EXPECT_EQ(s.state, static_cast<std::int8_t>(core::ServiceState::kHoming));
+  EXPECT_DOUBLE_EQ(s.lateness_p50_us, 20.0);
+  EXPECT_DOUBLE_EQ(s.period_p50_us, 1000.0);
+  EXPECT_DOUBLE_EQ(s.work_max_us, 7.0);
+  EXPECT_EQ(s.overruns, 3);
+  EXPECT_EQ(s.missing_samples, 4);
+  EXPECT_TRUE(s.clock_synchronised);
+  EXPECT_DOUBLE_EQ(s.clock_est_error_us, 12.5);
+  EXPECT_DOUBLE_EQ(s.utime_correction_us, 2.5);
+  EXPECT_EQ(s.clock_steps, 1);
+  EXPECT_EQ(s.joint_flags[1], static_cast<std::int32_t>(core::joint_flag::kGlitch));
+  char expected[160];
+  std::snprintf(expected, sizeof(expected),
+                "homing: 0/6 homed, 0.0%% valid, 3 overruns; joint %s flags 0x%x",
+                settings.joint_names[1].c_str(), core::joint_flag::kGlitch);
+  EXPECT_EQ(s.message, expected);
+  // The next window: only its own cycles and its own overruns.
+  status.count_cycle(core::CycleResult{}, true, false, 0, 1);
+  end.overruns = 3;
+  status.close_window(core::ServiceState::kHoming, end);
+  EXPECT_EQ(status.message().window_cycles, 1);
+  EXPECT_EQ(status.message().joint_flags[1], static_cast<std::int32_t>(core::joint_flag::kUnhomed));
+}
+
+TEST(EventRing, AFullRingDropsAndCounts) {
+  core::EventRing ring;
+  for (std::size_t i = 0; i < core::EventRing::kCapacity + 3; ++i) {
+    core::LogEvent e;
+    e.seq = static_cast<std::int64_t>(i);
+    ring.push(e);
+  }
+  EXPECT_EQ(ring.dropped(), 3);
+  core::LogEvent e;
+  std::int64_t expected = 0;
+  while (ring.pop(e)) EXPECT_EQ(e.seq, expected++);
+  EXPECT_EQ(expected, static_cast<std::int64_t>(core::EventRing::kCapacity));
+}
+
+TEST(ConfigHandover, TheLoopTakesTheLatestStagedConfiguration) {
+  auto first = std::make_unique<core::PipelineConfig>();
+  first->rig.singularity_threshold = 1.0;
+  core::ConfigHandover handover(std::move(first));
+  EXPECT_EQ(handover.take_staged(), nullptr);
+  for (const double v : {2.0, 3.0}) {
+    auto next = std::make_unique<core::PipelineConfig>();
+    next->rig.singularity_threshold = v;
+    handover.stage(std::move(next));
+  }
+  const core::PipelineConfig* taken = handover.take_staged();
+  ASSERT_NE(taken, nullptr);
+  EXPECT_EQ(taken, &handover.active());
+  EXPECT_DOUBLE_EQ(handover.active().rig.singularity_threshold, 3.0);
+  EXPECT_EQ(handover.take_staged(), nullptr);
+}

@@ -1,0 +1,85 @@
+#include "board_sim.hpp"
+
+#include <time.h>
+
+#include <bit>
+#include <cerrno>
+
+namespace exodaq::board_sim {
+namespace {
+
+void sleep_until(std::int64_t mono_ns) noexcept {
+  const timespec ts{static_cast<time_t>(mono_ns / 1'000'000'000),
+                    static_cast<long>(mono_ns % 1'000'000'000)};
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+bool interface_gone(int err) noexcept {
+  return err == -ENETDOWN || err == -ENODEV || err == -ENXIO || err == -EBADF;
+}
+
+}  // namespace
+
+void write_truth_header(std::FILE* truth) {
+  std::fprintf(truth, "# k seq t_s q0 q1 q2 q3 q4 q5 c0 c1 c2 c3 c4 c5 fault_bits\n");
+}
+
+BoardSim::BoardSim(const sim::SimOptions& options, drivers::CanPort& port, std::FILE* truth)
+    : rig_(options), port_(port), truth_(truth) {}
+
+int BoardSim::send(const drivers::can::CanFrame& frame) noexcept {
+  int r = 0;
+  for (int attempt = 0; attempt < 5; ++attempt) {
+    r = port_.send(frame);
+    if (r != -EAGAIN && r != -ENOBUFS) return r;
+    sleep_until(port_.now_mono_ns() + 200'000);  // the TX queue drains
+  }
+  return r;
+}
+
+void BoardSim::cycle(std::int64_t k, std::int64_t start_mono_ns) {
+  ++counters_.cycles;
+  const int n = rig_.step(k, frames_, start_mono_ns, 0);
+  std::uint32_t bits = rig_.last_cycle().applied;
+  for (int i = 0; i < n; ++i) {
+    const auto& frame = frames_[static_cast<std::size_t>(i)];
+    if (frame.mono_ns > port_.now_mono_ns()) sleep_until(frame.mono_ns);
+    const int err = port_.is_open() ? send(frame) : -ENODEV;
+    if (err == 0) {
+      ++counters_.frames;
+      continue;
+    }
+    ++counters_.send_failures;
+    bits |= kSendFailedBit;
+    if (interface_gone(err)) break;
+  }
+  write_truth(bits);
+}
+
+void BoardSim::write_truth(std::uint32_t bits) const {
+  if (truth_ == nullptr) return;
+  const sim::SimCycle& c = rig_.last_cycle();
+  std::fprintf(truth_, "%lld %u %.9f", static_cast<long long>(c.k),
+               static_cast<unsigned>((rig_.options().board.first_seq + c.k) & 0xFF), c.t_s);
+  for (double q : c.position) std::fprintf(truth_, " %.12f", q);
+  for (std::int64_t n : c.count) std::fprintf(truth_, " %lld", static_cast<long long>(n));
+  std::fprintf(truth_, " %u\n", bits);
+}
+
+std::string BoardSim::summary() const {
+  const auto& applied = rig_.applied_counts();
+  std::string s =
+      "BOARD-SIM: cycles=" + std::to_string(counters_.cycles) +
+      " frames=" + std::to_string(counters_.frames) +
+      " send_failures=" + std::to_string(counters_.send_failures) +
+      " random_loss=" + std::to_string(applied[std::countr_zero(sim::kRandomLossBit)]) +
+      " random_partial=" + std::to_string(applied[std::countr_zero(sim::kRandomPartialBit)]);
+  for (const sim::SimFaultName& f : sim::sim_fault_names()) {
+    s +=
+        " " + std::string(f.name) + "=" + std::to_string(applied[static_cast<std::size_t>(f.kind)]);
+  }
+  return s;
+}
+
+}  // namespace exodaq::board_sim

@@ -1,0 +1,203 @@
+"""Receiving exodaq messages in a decoder: decode by fingerprint, and a
+Subscriber for the channels of one rig.
+
+    import exodaq
+    with exodaq.Subscriber(prefix="") as sub:       # the daemon's lcm.url and lcm.prefix
+        for m in sub.messages(timeout=10):          # exodaq.Message(channel, kind, msg)
+            if m.kind == "joint_state":
+                print(m.msg.seq, m.msg.position, exodaq.joint_flag_names(m.msg.flags[0]))
+
+Also a command: ``python3 -m exodaq --count 5`` prints what arrives (--help).
+"""
+
+import argparse
+import collections
+import io
+import math
+import struct
+import sys
+import time
+
+from . import names
+from .udpm import DEFAULT_URL, Receiver
+
+Message = collections.namedtuple("Message", "channel kind msg")
+Message.__doc__ = """A received message: its channel, its kind's short name
+("joint_state", "palm_pose", "encoder_raw", "status") and the decoded object
+(exodaq.joint_state_t, ...; every array field a list)."""
+
+DEFAULT_KINDS = ("joint_state", "palm_pose", "status")
+
+
+def _normalise(msg):
+    # lcm-gen 1.3.1 decodes arrays as tuples and boolean arrays as map(bool, ...),
+    # which in Python 3 is a one-shot iterator: make every array field a list.
+    for name in msg.__slots__:
+        v = getattr(msg, name)
+        if isinstance(v, (map, tuple)):
+            setattr(msg, name, list(v))
+    return msg
+
+
+def decode(data):
+    """The exodaq message encoded in `data` (bytes), recognised by its fingerprint,
+    with every array field a list; None when the fingerprint is not an exodaq
+    type. ValueError when the bytes are not exactly one complete message of its
+    type (truncated, damaged, trailing bytes)."""
+    k = names.kind_of_payload(data)
+    if k is None:
+        return None
+    buf = io.BytesIO(data)
+    buf.seek(8)
+    try:
+        msg = k.type._decode_one(buf)
+    except (struct.error, ValueError) as e:
+        raise ValueError("%s: %d bytes do not decode: %s" % (k.type.__name__, len(data), e)) from e
+    if buf.tell() != len(data):
+        raise ValueError("%s: %d bytes, one message is %d" % (k.type.__name__, len(data), buf.tell()))
+    return _normalise(msg)
+
+
+def fields(msg):
+    """[(name, value)] of a decoded message in declaration order."""
+    return [(name, getattr(msg, name)) for name in msg.__slots__]
+
+
+class Subscriber:
+    """The exodaq channels of one rig, received and decoded.
+
+    url: the daemon's lcm.url (udpm:// only; the receiver's ttl does not matter).
+    prefix: the daemon's lcm.prefix, used literally.
+    kinds: which messages, by short name (default joint_state, palm_pose, status).
+    Counters, for checking nothing was lost:
+      lost[kind]   cycles missing from seq of the per-cycle kinds: lost on the
+                   way to this process (socket buffer full, network); reset
+                   when run_id changes (the daemon restarted)
+      undecodable  messages on these channels that did not decode (last_error says why)
+      and the transport's: receiver.bad_packets, receiver.dropped_fragmented
+    """
+
+    def __init__(self, url=DEFAULT_URL, prefix="", kinds=DEFAULT_KINDS, recv_buf_size=None):
+        self.prefix = prefix
+        self.kinds = [names.kind(k) for k in kinds]
+        self._by_channel = {prefix + k.base_channel: k for k in self.kinds}
+        self.receiver = Receiver(url, channels=list(self._by_channel), recv_buf_size=recv_buf_size)
+        self.received = collections.Counter()
+        self.lost = collections.Counter()
+        self.undecodable = 0
+        self.last_error = None
+        self._last = {}  # kind name -> (run_id, seq)
+
+    def close(self):
+        self.receiver.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def fileno(self):
+        return self.receiver.fileno()
+
+    @property
+    def channels(self):
+        return list(self._by_channel)
+
+    def _count(self, k, msg):
+        self.received[k.name] += 1
+        if not k.per_cycle:
+            return
+        last = self._last.get(k.name)
+        if last is not None and last[0] == msg.run_id and msg.seq > last[1] + 1:
+            self.lost[k.name] += msg.seq - last[1] - 1
+        if last is None or last[0] != msg.run_id or msg.seq > last[1]:
+            self._last[k.name] = (msg.run_id, msg.seq)
+
+    def recv(self, timeout=None):
+        """The next Message; None after `timeout` s (None: wait for ever)."""
+        while True:
+            got = self.receiver.recv(timeout)
+            if got is None:
+                return None
+            channel, data = got
+            k = self._by_channel[channel]
+            try:
+                msg = decode(data)
+                if msg is None or type(msg) is not k.type:
+                    raise ValueError("%s: not a %s (%d bytes)" % (channel, k.type.__name__, len(data)))
+            except ValueError as e:
+                self.undecodable += 1
+                self.last_error = str(e)
+                continue  # counted; the caller sees it in undecodable
+            self._count(k, msg)
+            return Message(channel, k.name, msg)
+
+    def messages(self, count=None, timeout=None):
+        """Yields Messages until `count` of them or `timeout` s in total (None: no limit)."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        n = 0
+        while count is None or n < count:
+            left = None if deadline is None else max(0.0, deadline - time.monotonic())
+            m = self.recv(left)
+            if m is None:
+                return
+            n += 1
+            yield m
+
+
+def _summary(channel, msg):
+    if msg is None:
+        return "%s: (not an exodaq type)" % channel
+    t = type(msg).__name__
+    if t == "joint_state_t":
+        deg = " ".join("%8.3f" % math.degrees(p) for p in msg.position)
+        return "%s seq %d deg [%s] homed %s flags %s sample %s" % (
+            channel, msg.seq, deg, "".join("1" if h else "0" for h in msg.homed),
+            ",".join(names.joint_flag_names(f) for f in msg.flags),
+            names.sample_flag_names(msg.sample_flags))
+    if t == "palm_pose_t":
+        return "%s seq %d valid %d (%s) mm [%s] manip %.3f" % (
+            channel, msg.seq, msg.valid, names.invalid_reason_names(msg.invalid_reason),
+            " ".join("%8.2f" % (p * 1e3) for p in msg.position), msg.shoulder_manipulability)
+    if t == "encoder_raw_t":
+        return "%s seq %d present %d count16 %s" % (channel, msg.seq, msg.present, msg.count16)
+    return "%s seq %d rig %r %s %r" % (channel, msg.seq, msg.rig, names.state_name(msg.state),
+                                       msg.message)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="python3 -m exodaq",
+                                 description="Print exodaq LCM messages (no LCM module needed).")
+    ap.add_argument("--url", default=DEFAULT_URL, help="LCM URL (udpm:// only)")
+    ap.add_argument("--prefix", default="", help="rig channel prefix (config lcm.prefix)")
+    ap.add_argument("--channel", help="regular expression for the channel (default: the four "
+                    "exodaq channels with --prefix)")
+    ap.add_argument("--count", type=int, help="stop after N messages")
+    ap.add_argument("--timeout", type=float, help="stop after S seconds")
+    ap.add_argument("--fields", action="store_true", help="print every field")
+    a = ap.parse_args(argv)
+    channels = a.channel or [a.prefix + c for c in names.BASE_CHANNELS]
+    n = 0
+    with Receiver(a.url, channels=channels) as rx:
+        try:
+            for channel, data in rx.messages(count=a.count, timeout=a.timeout):
+                n += 1
+                try:
+                    msg = decode(data)
+                except ValueError as e:
+                    print("%s: %s" % (channel, e))
+                    continue
+                if a.fields and msg is not None:
+                    print(channel)
+                    for name, v in fields(msg):
+                        print("  %s = %r" % (name, v))
+                else:
+                    print(_summary(channel, msg))
+                sys.stdout.flush()
+        except KeyboardInterrupt:
+            pass
+    if a.count is not None and n < a.count:
+        print("exodaq: %d of %d messages" % (n, a.count), file=sys.stderr)
+        return 1
+    return 0
