@@ -358,11 +358,11 @@ TEST_F(ReplayLive, PlotWritesOneNonEmptyPngPerPanel) {
 
 // --- calibrate from the recording (issue 16 point 2) -------------------------
 
-// Markers synthesised from the recorded joint angles: θᴿ = recorded position −
-// the sim calibration's offsets (the sim puts each index at those angles), the
+// Markers synthesised from the recorded joint angles: θᴿ = position − the sim
+// calibration's offsets (the sim puts each index at those angles), the
 // markers of config/calibration/markers_example.yaml through forward
 // kinematics with a known calibration (seed 000 Table 4 "Results") every 10th
-// cycle in which all six joints are homed and clean.
+// cycle in which all six joints are homed and unflagged and the sample is there.
 struct Markers {
   std::string csv;
   std::string bounds;
@@ -401,14 +401,17 @@ Markers synthesise_markers(const std::string& dir) {
   const cal::NominalModel model = cal::nominal_from_chain(cfg.model.chain);
   const cal::MarkerLayout layout = cal::load_marker_layout_file(
       std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/markers_example.yaml");
+  // The recording's angles as the replay computes them from its raw channel:
+  // the live ones exactly when the logger lost nothing (the first test), and
+  // what `calibrate -c` computes from the same recording either way.
   const auto joints =
-      messages_by_seq<joint_state_t>(read_log(g_live->log), g_live->prefix + "EXO_JOINT_STATE");
+      messages_by_seq<joint_state_t>(read_log(g_live->replay), g_live->prefix + "EXO_JOINT_STATE");
   std::ostringstream out;
   out << "utime_us,x_mm,y_mm,z_mm,marker_id\n";
   out.precision(12);
   std::int64_t k = 0;
   for (const auto& [seq, j] : joints) {
-    bool clean = j.sample_flags == 0;
+    bool clean = (j.sample_flags & joint_state_t::SAMPLE_MISSING) == 0;
     for (int i = 0; i < 6; ++i) clean = clean && j.homed[i] && j.flags[i] == 0;
     if (!clean || k++ % 10 != 0) continue;
     std::array<double, 6> theta_r{};
@@ -476,13 +479,14 @@ TEST_F(ReplayLive, CalibrateReadsTheRecordingAndFindsTheKnownCalibration) {
   // The lcm-logger recording, raw channel re-processed with the config.
   expect_truth(calibrate(g_live->log, m, {"-c", g_live->config}, dir + "/from-raw.yaml"), m.truth,
                "LCM log, raw channel");
-  // The same recording's joint states, less the calibration they were made with.
-  expect_truth(calibrate(g_live->log, m, {"--recorded-calibration", sim_cal},
+  // Joint states (the replay's log of the recording), less the calibration
+  // they were computed with.
+  expect_truth(calibrate(g_live->replay, m, {"--recorded-calibration", sim_cal},
                          dir + "/from-joint-states.yaml"),
                m.truth, "LCM log, joint states");
   // The CSV of exodaq export, with the config (its calibration).
   const std::string csv = dir + "/export.csv";
-  ASSERT_EQ(exodaq({"export", g_live->log, "-o", csv, "-q"}).exit_code, 0);
+  ASSERT_EQ(exodaq({"export", g_live->replay, "-o", csv, "-q"}).exit_code, 0);
   expect_truth(calibrate(csv, m, {"-c", g_live->config}, dir + "/from-export.yaml"), m.truth,
                "export CSV");
 
@@ -490,7 +494,7 @@ TEST_F(ReplayLive, CalibrateReadsTheRecordingAndFindsTheKnownCalibration) {
   // 93 degrees): no fit at all, said so (it crashed in the identifiability
   // analysis before).
   const RunResult wrong =
-      exodaq({"calibrate", "--encoders", g_live->log, "--recorded-calibration",
+      exodaq({"calibrate", "--encoders", g_live->replay, "--recorded-calibration",
               std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/nominal.yaml", "--markers",
               m.csv, "--bounds", m.bounds, "--marker-layout",
               std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/markers_example.yaml", "-q",
