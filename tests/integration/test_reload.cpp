@@ -47,7 +47,7 @@ TEST(Reload, SighupAppliesANewCalibrationWithoutAGapAndRejectsABadOne) {
   // The rig as it started (its motion depends on the index angles): the truth.
   const auto rig_config = config::load_service_config(config);
   test::Process recorder(
-      {EXODAQ_RECORDER, test::kLcmUrl, prefix + "EXO_(JOINT_STATE|STATUS)", dir + "/rec.bin"}, "",
+      {EXODAQ_RECORDER, test::kRecordUrl, prefix + "EXO_(JOINT_STATE|STATUS)", dir + "/rec.bin"}, "",
       dir + "/rec.err");
   std::this_thread::sleep_for(300ms);
   test::Process daemon({EXODAQD, "--config", config}, dir + "/d.out", dir + "/d.err");
