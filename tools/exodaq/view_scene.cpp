@@ -4,6 +4,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "clock_text.hpp"
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/flag_names.hpp"
@@ -277,7 +278,10 @@ std::string ViewScene::status_json(const status_t& s) const {
   j.field("message", s.message).field("source", s.source);
   j.field("bus", msg::bus_state_name(s.bus_state)).field("board_errors", s.board_errors);
   j.key("clock").begin_object();
-  j.field("synchronised", s.clock_synchronised != 0).field("est_error_us", s.clock_est_error_us);
+  j.field("synchronised", s.clock_synchronised != 0).field("required", options_.sync_required);
+  // The kernel's 16 s bound means "no estimate" (clock_text.hpp): null.
+  j.key("est_error_us");
+  s.clock_est_error_us < kKernelUnknownErrorUs ? j.value(s.clock_est_error_us) : j.null();
   j.field("max_error_us", s.clock_max_error_us).field("offset_us", s.clock_offset_us);
   j.field("utime_correction_us", s.utime_correction_us).field("steps", s.clock_steps);
   j.end_object();

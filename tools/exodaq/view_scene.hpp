@@ -48,6 +48,7 @@ struct SceneOptions {
   double trail_s = 5.0;         // palm trail length
   double silence_s = 1.0;       // no joint state for longer: "no-data" (or "stopped")
   double stream_every_s = 0.5;  // a stream event at least this often
+  bool sync_required = true;    // false under the config's clock.require_sync: ignore
 };
 
 enum class StreamState { kWaiting, kLive, kNoData, kStopped };
