@@ -102,7 +102,7 @@ void Acquisition::prepare_for_manual_cycles() {
 void Acquisition::start() {
   if (started_) return;
   prepare_for_manual_cycles();
-  publisher_.start();
+  publisher_.start(config_.priority);
   clock_monitor_->start();
   thread_ = std::thread([this] { thread_main(); });
 }
@@ -155,6 +155,7 @@ void Acquisition::thread_main() noexcept {
   pthread_setname_np(pthread_self(), "exodaq-loop");
   const std::int64_t period = config_.period_ns;
   std::int64_t deadline = mono_now_ns() + period;
+  publisher_.expect_cycle_at(deadline);  // CANDIDATE
   while (!stop_requested_.load(std::memory_order_relaxed)) {
     deadline = time_base_->wait(deadline);
     const std::int64_t wake = mono_now_ns();
@@ -167,6 +168,7 @@ void Acquisition::thread_main() noexcept {
       deadline += missed * period;
       count_overrun(missed, end - wake);
     }
+    publisher_.expect_cycle_at(deadline);  // CANDIDATE
   }
   finished_.store(true, std::memory_order_release);
 }
@@ -292,7 +294,8 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   end.utime_us = result_.utime_us;
   end.overruns = overruns_.load(std::memory_order_relaxed);
   end.cycles = cycles_.load(std::memory_order_relaxed);
-  end.publish_failures = publisher_.failures() + publisher_.ring_drops();
+  end.publish = publisher_.health();
+  end.publish_failures = end.publish.failures + end.publish.ring_drops;
   end.utime_correction_ns = time_base_->utime_correction_ns();
   end.clock_steps = time_base_->clock_steps();
 

@@ -1,0 +1,239 @@
+#!/usr/bin/env python3
+"""A lost network path is a state, not a counter (issue 15): exodaqd on the rig
+host of a two-host lab (tests/lab/netlab.py) loses its path to the multicast
+group and gets it back, while a decoder host records what arrives.
+
+Scenarios (--scenario, each one run of exodaqd on the simulated rig at 1 kHz,
+ttl=1; the fault starts --fault-at seconds in):
+
+  link    `ip link set eth0 down`, --outage seconds, `up`; the kernel drops the
+          multicast route with the link, so it is added back (what the network
+          manager does when the link returns)
+  route   `ip route del 224.0.0.0/4 dev eth0`, --outage seconds, `ip route add`
+  lost    as `link` but the route is never restored: publishing fails to the end
+
+Checks, from the daemon's log, the decoder host's summary (exodaq_lab_decoder)
+and the status messages it received (`exodaq echo --channel status --csv`):
+
+  - a warning names the URL and the errno, with the seq of the first lost message;
+  - the service turns DEGRADED within 100 cycles (100 ms) of that seq;
+  - the LCM socket is re-created 1 s into the episode, then at doubling intervals;
+  - link/route: a recovery line with the messages lost; the decoder's holes lie
+    within the episode; the daemon's publish_failures equals the lost count; the
+    first status after it says DEGRADED and "publishing recovered at seq ...";
+    the service is RUNNING again before the end;
+  - lost: nothing arrives after the episode's start, the final log line counts
+    the failures.
+
+  publish_fault.py --scenario link --exodaqd build/daemon/exodaqd \
+      --decoder build/tests/lab/exodaq_lab_decoder --exodaq build/tools/exodaq \
+      [--seconds 10] [--fault-at 3] [--outage 2] [--work-dir DIR] [--report-json FILE]
+
+Exit 0: passed; 1: failed; 77: skipped (no network namespaces here, e.g. not root).
+"""
+
+import argparse
+import csv
+import io
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import netlab  # noqa: E402
+from run_lab import RECEIVE_URL, PUBLISH_URL, Checks, wait_line, write_config  # noqa: E402
+
+ROUTE = ["224.0.0.0/4", "dev", "eth0"]
+STATE_NAMES = {0: "starting", 1: "homing", 2: "running", 3: "degraded", 4: "fault", 5: "stopping"}
+LINE = re.compile(r"^(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3}) (\w+) (.*)$")
+
+
+def log_lines(path):
+    """(seconds since the first line, level, text) of the daemon's stderr log."""
+    out, t0 = [], None
+    for raw in open(path, errors="replace"):
+        m = LINE.match(raw.rstrip("\n"))
+        if not m:
+            continue
+        t = time.mktime(time.strptime(m.group(1)[:19], "%Y-%m-%d %H:%M:%S")) + float(m.group(1)[19:])
+        t0 = t if t0 is None else t0
+        out.append((t - t0, m.group(2), m.group(3)))
+    return out
+
+
+def fault(lab, a):
+    """Breaks the path at --fault-at, restores it after --outage (not for `lost`)."""
+    ns = lab.ns("rig")
+    ip = lambda *args: subprocess.run(["ip", "-n", ns, *args], capture_output=True, text=True)  # noqa: E731
+    if a.scenario == "route":
+        ip("route", "del", *ROUTE)
+    else:
+        ip("link", "set", "eth0", "down")
+    time.sleep(a.outage)
+    if a.scenario == "route":
+        ip("route", "add", *ROUTE)
+    else:
+        ip("link", "set", "eth0", "up")
+        routes = ip("route", "show").stdout
+        if a.scenario == "link":
+            ip("route", "replace", *ROUTE)
+        return {"route_after_link_up": routes.strip()}
+    return {}
+
+
+def statuses(path):
+    """The status_t messages the decoder host received, in order (exodaq echo's CSV)."""
+    if not os.path.exists(path):
+        return []
+    rows = list(csv.DictReader(io.StringIO(open(path).read())))
+    return [{"seq": int(r["seq"]), "state": int(r["state"]), "message": r["message"],
+             "publish_failures": int(r["publish_failures"])} for r in rows if r.get("seq")]
+
+
+def run(lab, a, work):
+    config = write_config(work, a.prefix)
+    d = os.path.join(work, "bmi")
+    os.makedirs(d, exist_ok=True)
+    decoder = lab.popen("bmi", [a.decoder, "--url", RECEIVE_URL, "--prefix", a.prefix,
+                                "--out", os.path.join(d, "summary.json"), "--duration", str(a.seconds + 30)],
+                        stdout=subprocess.PIPE, stderr=open(os.path.join(d, "stderr"), "w"))
+    echo = lab.popen("bmi", [a.exodaq, "echo", "--channel", "status", "--csv", "--url", RECEIVE_URL,
+                             "--prefix", a.prefix, "--duration", str(a.seconds + 10)],
+                     stdout=open(os.path.join(d, "status.csv"), "w"), stderr=subprocess.DEVNULL)
+    if not wait_line(decoder, "subscribed", 10):
+        raise RuntimeError("the decoder did not start")
+    time.sleep(0.5)
+    daemon = lab.popen("rig", [a.exodaqd, "--config", config, "--duration", str(a.seconds)],
+                       stdout=open(os.path.join(work, "exodaqd.log"), "w"), stderr=subprocess.STDOUT)
+    time.sleep(a.fault_at)
+    facts = fault(lab, a)
+    try:
+        rc = daemon.wait(timeout=a.seconds + 60)
+    except subprocess.TimeoutExpired:
+        daemon.kill()
+        rc = "timeout"
+    time.sleep(0.5)
+    for p in (decoder, echo):
+        p.send_signal(signal.SIGTERM)
+        try:
+            p.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            p.kill()
+    summary = json.load(open(os.path.join(d, "summary.json")))
+    return analyse(a, work, rc, summary, statuses(os.path.join(d, "status.csv")), facts)
+
+
+def find(lines, pattern):
+    for t, level, text in lines:
+        m = re.search(pattern, text)
+        if m:
+            return t, level, m
+    return None
+
+
+def analyse(a, work, rc, summary, status, facts):
+    c = Checks()
+    lines = log_lines(os.path.join(work, "exodaqd.log"))
+    c.check(rc == 0, "exodaqd exited 0", f"exit {rc}")
+    failing = find(lines, r"publishing on (\S+) failing since seq (\d+): (.*\(E[A-Z]+\))")
+    c.check(failing and failing[1] == "warning" and failing[2].group(1) == PUBLISH_URL,
+            "a warning names the URL and the errno", failing[2].group(0) if failing else "no such line")
+    if not failing:
+        return c, None
+    t_fail, first_lost = failing[0], int(failing[2].group(2))
+    degraded = find(lines, r"service state: degraded \(seq (\d+)\)")
+    c.check(degraded and 0 <= int(degraded[2].group(1)) - first_lost <= 100,
+            "DEGRADED within 100 cycles of the first lost message",
+            f"first lost seq {first_lost}, degraded at seq {degraded[2].group(1) if degraded else None}")
+    reopens = [t - t_fail for t, _, text in lines if "re-created the LCM socket" in text]
+    c.check(reopens and 0.8 <= reopens[0] <= 1.6,
+            "the socket is re-created 1 s into the episode", f"at {[round(x, 2) for x in reopens]} s")
+    if len(reopens) >= 2:
+        c.check(1.6 <= reopens[1] - reopens[0] <= 2.6, "then 2 s later (backoff)",
+                f"{reopens[1] - reopens[0]:.2f} s")
+    final = summary.get("status")
+    recovered = find(lines, r"recovered at seq (\d+): (\d+) messages lost from seq (\d+) over ([\d.]+) s")
+    stopped = find(lines, r"stopped after (\d+) cycles \((\d+) overruns, (\d+) publish failures\)")
+    report = {"scenario": a.scenario, "outage_s": a.outage, "first_lost_seq": first_lost,
+              "errno": failing[2].group(3), "reopens_s": reopens,
+              "degraded_seq": int(degraded[2].group(1)) if degraded else None,
+              "stopped": stopped[2].groups() if stopped else None, **facts}
+    gaps = summary["channels"].get("EXO_PALM_POSE", {}).get("gaps", [])
+    report["palm_gaps"] = gaps
+    if a.scenario == "lost":
+        last = summary["channels"].get("EXO_PALM_POSE", {}).get("last_seq", -1)
+        c.check(last < first_lost, "nothing arrives after the path is lost",
+                f"last palm pose seq {last}, first lost {first_lost}")
+        c.check(recovered is None, "no recovery is claimed")
+        c.check(stopped and int(stopped[2].group(3)) > 0, "the final line counts the failures",
+                stopped[2].group(0) if stopped else "no final line")
+        return c, report
+    c.check(recovered is not None and recovered[1] == "info", "the recovery is logged",
+            recovered[2].group(0) if recovered else "no recovery line")
+    if not recovered:
+        return c, report
+    back, lost, since, over = (int(recovered[2].group(1)), int(recovered[2].group(2)),
+                               int(recovered[2].group(3)), float(recovered[2].group(4)))
+    report.update({"recovered_seq": back, "lost": lost, "episode_s": over})
+    c.check(since == first_lost, "the recovery names the episode's first lost seq")
+    c.check(final is not None and final["publish_failures"] == lost,
+            "status_t.publish_failures = the messages lost", f"{final and final['publish_failures']} vs {lost}")
+    in_episode = all(first_lost <= g0 and g1 < back for g0, g1 in gaps)
+    c.check(gaps and in_episode, "the decoder's palm-pose holes lie within the episode",
+            f"{gaps} within [{first_lost}, {back})")
+    after = [s for s in status if s["seq"] >= back]
+    c.check(after and after[0]["state"] == 3 and f"publishing recovered at seq {back}" in after[0]["message"],
+            "the first status after it: DEGRADED, what was lost and since when",
+            json.dumps(after[0]) if after else "no status after the recovery")
+    running_again = [t for t, _, text in lines if "service state: running" in text and t > t_fail]
+    c.check(running_again, "RUNNING again before the end")
+    report["first_status_after"] = after[0] if after else None
+    return c, report
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenario", choices=("link", "route", "lost"), required=True)
+    ap.add_argument("--seconds", type=float, default=10.0, help="how long exodaqd runs")
+    ap.add_argument("--fault-at", type=float, default=3.0)
+    ap.add_argument("--outage", type=float, default=2.0)
+    ap.add_argument("--exodaqd", required=True)
+    ap.add_argument("--decoder", required=True)
+    ap.add_argument("--exodaq", required=True)
+    ap.add_argument("--prefix", default="PF_")
+    ap.add_argument("--work-dir")
+    ap.add_argument("--report-json")
+    a = ap.parse_args()
+    work = a.work_dir or tempfile.mkdtemp(prefix="exodaq-pubfault-")
+    if a.work_dir:
+        shutil.rmtree(work, ignore_errors=True)
+        os.makedirs(work)
+    try:
+        lab = netlab.NetLab(["rig", "bmi"])
+    except netlab.LabUnavailable as e:
+        print(f"publish_fault: SKIP: cannot build the namespace lab: {e}")
+        return 77
+    with lab:
+        checks, report = run(lab, a, work)
+    if report:
+        print("publish_fault: " + json.dumps(report))
+        if a.report_json:
+            with open(a.report_json, "w") as f:
+                json.dump(report, f, indent=1)
+    checks.print()
+    print("publish_fault: PASSED" if checks.passed else "publish_fault: FAILED")
+    if checks.passed and not a.work_dir:
+        shutil.rmtree(work, ignore_errors=True)
+    else:
+        print(f"publish_fault: logs and summaries are in {work}")
+    return 0 if checks.passed else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
