@@ -44,8 +44,13 @@ bool take_option(std::string_view option, UdpmAddress& a) {
 }
 
 // A socket set up as lcm_udpm.c sets up its send socket (TTL, loopback on),
-// nonblocking; it does not join the group: it never reads.
-int open_socket(const UdpmAddress& a) noexcept {
+// nonblocking; it does not join the group: it never reads. Unlike LCM's it is
+// connected to the group, so a send reuses the cached route instead of
+// looking it up (LCM's comment that Linux then fails to multicast to this
+// host is long obsolete: tests/daemon/test_publisher.cpp receives locally).
+// Without a route the connect fails and the socket stays unconnected: send()
+// then gives the address with every datagram, as LCM does.
+int open_socket(const UdpmAddress& a, const sockaddr_in& destination) noexcept {
   const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
   if (fd < 0) return -errno;
   const unsigned char ttl = static_cast<unsigned char>(a.ttl);
@@ -56,6 +61,7 @@ int open_socket(const UdpmAddress& a) noexcept {
     close(fd);
     return -e;
   }
+  connect(fd, reinterpret_cast<const sockaddr*>(&destination), sizeof destination);
   return fd;
 }
 
@@ -112,7 +118,7 @@ UdpmSender::UdpmSender(const UdpmAddress& address, const std::string& url) : add
     throw std::runtime_error("cannot send to LCM on '" + url + "': " + errno_text(e));
   }
   close(test);
-  fd_ = open_socket(address_);
+  fd_ = open_socket(address_, destination_);
   if (fd_ < 0) {
     throw std::runtime_error("cannot open a socket for LCM on '" + url + "': " + errno_text(-fd_));
   }
@@ -123,7 +129,7 @@ UdpmSender::~UdpmSender() {
 }
 
 int UdpmSender::reopen() noexcept {
-  const int fresh = open_socket(address_);
+  const int fresh = open_socket(address_, destination_);
   if (fresh < 0) return -fresh;
   const int rc = dup2(fresh, fd_) < 0 ? errno : 0;
   close(fresh);
@@ -140,13 +146,19 @@ int UdpmSender::sendv(const void* header, std::size_t header_size, const std::st
   }
   iov[n++] = {const_cast<std::uint8_t*>(data), size};
   msghdr m{};
-  m.msg_name = &destination_;
-  m.msg_namelen = sizeof destination_;
   m.msg_iov = iov.data();
   m.msg_iovlen = n;
   std::size_t expected = 0;
   for (std::size_t i = 0; i < n; ++i) expected += iov[i].iov_len;
-  const ssize_t sent = sendmsg(fd_, &m, MSG_DONTWAIT | MSG_NOSIGNAL);
+  // Connected: no address, so the kernel keeps the socket's cached route. A
+  // socket re-created while the group had no route is not connected: then
+  // with the address, as LCM sends.
+  ssize_t sent = sendmsg(fd_, &m, MSG_DONTWAIT | MSG_NOSIGNAL);
+  if (sent < 0 && (errno == EDESTADDRREQ || errno == ENOTCONN)) {
+    m.msg_name = &destination_;
+    m.msg_namelen = sizeof destination_;
+    sent = sendmsg(fd_, &m, MSG_DONTWAIT | MSG_NOSIGNAL);
+  }
   if (sent < 0) return errno;
   return static_cast<std::size_t>(sent) == expected ? 0 : EMSGSIZE;
 }

@@ -610,8 +610,9 @@ void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& lo
   }
   if (!options.lateness_log.empty()) write_lateness_log(acq, options.lateness_log);
   spdlog::info(
-      "stopped after {} cycles ({} overruns, {} publish failures){}", acq.cycles(), acq.overruns(),
-      acq.publisher().failures() + acq.publisher().ring_drops(),
+      "stopped after {} cycles ({} overruns, {} publish failures, {} messages published){}",
+      acq.cycles(), acq.overruns(), acq.publisher().failures() + acq.publisher().ring_drops(),
+      acq.publisher().published(),
       fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", std::to_string(acq.run_id())}}));
   shut_down_logging(logging);
 }
