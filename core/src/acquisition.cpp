@@ -102,7 +102,7 @@ void Acquisition::prepare_for_manual_cycles() {
 void Acquisition::start() {
   if (started_) return;
   prepare_for_manual_cycles();
-  publisher_.start(config_.priority);
+  publisher_.start();
   clock_monitor_->start();
   thread_ = std::thread([this] { thread_main(); });
 }
@@ -155,7 +155,6 @@ void Acquisition::thread_main() noexcept {
   pthread_setname_np(pthread_self(), "exodaq-loop");
   const std::int64_t period = config_.period_ns;
   std::int64_t deadline = mono_now_ns() + period;
-  publisher_.expect_cycle_at(deadline);  // CANDIDATE
   while (!stop_requested_.load(std::memory_order_relaxed)) {
     deadline = time_base_->wait(deadline);
     const std::int64_t wake = mono_now_ns();
@@ -168,7 +167,6 @@ void Acquisition::thread_main() noexcept {
       deadline += missed * period;
       count_overrun(missed, end - wake);
     }
-    publisher_.expect_cycle_at(deadline);  // CANDIDATE
   }
   finished_.store(true, std::memory_order_release);
 }

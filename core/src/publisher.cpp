@@ -3,12 +3,8 @@
 #include <lcm/lcm.h>
 #include <time.h>
 
-#include <pthread.h>
-#include <sched.h>
-
 #include <algorithm>
 #include <cerrno>
-#include <cstdlib>
 #include <stdexcept>
 
 #include "exodaq/common/clock_now.hpp"
@@ -88,15 +84,7 @@ timespec mono_in(std::int64_t ns) {
 }
 }  // namespace
 
-// CANDIDATE (issue 17 measurements, temporary).
-int candidate_mode() {
-  const char* m = std::getenv("EXODAQ_PUBLISH_MODE");
-  const std::string s = m != nullptr ? m : "loop";
-  return s == "thread" ? 0 : s == "thread-rt" ? 1 : s == "scheduled" ? 2 : 3;
-}
-
 std::unique_ptr<MessageSink> make_lcm_sink(const std::string& url) {
-  if (candidate_mode() < 3) return std::make_unique<LcmSink>(url);
   if (const auto address = parse_udpm_url(url)) return std::make_unique<UdpmSink>(*address, url);
   return std::make_unique<LcmSink>(url);
 }
@@ -111,7 +99,6 @@ Publisher::Publisher(std::unique_ptr<MessageSink> sink, const std::string& prefi
     channels_[static_cast<std::size_t>(k)] = msg::channel_name(prefix, k);
   }
   sem_init(&ready_, 0, 0);
-  mode_ = candidate_mode();
 }
 
 Publisher::~Publisher() {
@@ -119,49 +106,14 @@ Publisher::~Publisher() {
   sem_destroy(&ready_);
 }
 
-void Publisher::start(int loop_priority) {
+void Publisher::start() {
   stopping_.store(false);
-  thread_ = std::thread([this, loop_priority] {
-    if (mode_ >= 1 && mode_ <= 2 && loop_priority > 1) {  // CANDIDATE
-      sched_param p{};
-      p.sched_priority = loop_priority - 1;
-      pthread_setschedparam(pthread_self(), SCHED_FIFO, &p);
-    }
-    if (mode_ == 2) {
-      run_scheduled();
-    } else {
-      run();
-    }
-  });
-}
-
-// CANDIDATE: wakes on the loop's deadlines (+20 us) instead of being woken;
-// sends what the loop commits until the loop's notify(), for at most 200 us.
-void Publisher::run_scheduled() noexcept {
-  while (!stopping_.load(std::memory_order_acquire)) {
-    const std::int64_t d = next_deadline_.load(std::memory_order_acquire);
-    const std::int64_t wake = d > 0 ? d + 20'000 : mono_now_ns() + 1'000'000;
-    const timespec ts{static_cast<time_t>(wake / 1'000'000'000),
-                      static_cast<long>(wake % 1'000'000'000)};
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-    }
-    const std::uint64_t seen = cycles_notified_.load(std::memory_order_acquire);
-    const std::int64_t give_up = mono_now_ns() + 200'000;
-    while (cycles_notified_.load(std::memory_order_acquire) == seen && mono_now_ns() < give_up) {
-      publish_one();
-    }
-    while (publish_one()) {
-    }
-  }
-  while (publish_one()) {
-  }
-  sink_->flush();
+  thread_ = std::thread([this] { run(); });
 }
 
 void Publisher::stop() noexcept {
   if (!thread_.joinable()) return;
   stopping_.store(true, std::memory_order_release);
-  next_deadline_.store(0, std::memory_order_release);
   sem_post(&ready_);
   thread_.join();
 }
@@ -192,10 +144,6 @@ void Publisher::commit() noexcept {
 }
 
 void Publisher::notify() noexcept {
-  if (mode_ == 2) {  // CANDIDATE
-    cycles_notified_.fetch_add(1, std::memory_order_release);
-    return;
-  }
   if (!direct_) sem_post(&ready_);  // never blocks
 }
 

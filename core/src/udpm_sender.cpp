@@ -44,13 +44,12 @@ bool take_option(std::string_view option, UdpmAddress& a) {
 }
 
 // A socket set up as lcm_udpm.c sets up its send socket (TTL, loopback on),
-// nonblocking; it does not join the group: it never reads. Unlike LCM's it is
-// connected to the group, so a send reuses the cached route instead of
-// looking it up (LCM's comment that Linux then fails to multicast to this
-// host is long obsolete: tests/daemon/test_publisher.cpp receives locally).
-// Without a route the connect fails and the socket stays unconnected: send()
-// then gives the address with every datagram, as LCM does.
-int open_socket(const UdpmAddress& a, const sockaddr_in& destination) noexcept {
+// nonblocking; it does not join the group: it never reads. Not connected
+// either, as LCM's: a connected socket keeps its cached route after the route
+// is gone and sends into nothing without an error (a lost network path would
+// be silent: tests/lab/publish_fault.py); unconnected, each send looks the
+// route up and fails with ENETUNREACH.
+int open_socket(const UdpmAddress& a) noexcept {
   const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
   if (fd < 0) return -errno;
   const unsigned char ttl = static_cast<unsigned char>(a.ttl);
@@ -61,7 +60,6 @@ int open_socket(const UdpmAddress& a, const sockaddr_in& destination) noexcept {
     close(fd);
     return -e;
   }
-  connect(fd, reinterpret_cast<const sockaddr*>(&destination), sizeof destination);
   return fd;
 }
 
@@ -118,7 +116,7 @@ UdpmSender::UdpmSender(const UdpmAddress& address, const std::string& url) : add
     throw std::runtime_error("cannot send to LCM on '" + url + "': " + errno_text(e));
   }
   close(test);
-  fd_ = open_socket(address_, destination_);
+  fd_ = open_socket(address_);
   if (fd_ < 0) {
     throw std::runtime_error("cannot open a socket for LCM on '" + url + "': " + errno_text(-fd_));
   }
@@ -129,7 +127,7 @@ UdpmSender::~UdpmSender() {
 }
 
 int UdpmSender::reopen() noexcept {
-  const int fresh = open_socket(address_, destination_);
+  const int fresh = open_socket(address_);
   if (fresh < 0) return -fresh;
   const int rc = dup2(fresh, fd_) < 0 ? errno : 0;
   close(fresh);
@@ -146,19 +144,13 @@ int UdpmSender::sendv(const void* header, std::size_t header_size, const std::st
   }
   iov[n++] = {const_cast<std::uint8_t*>(data), size};
   msghdr m{};
+  m.msg_name = &destination_;
+  m.msg_namelen = sizeof destination_;
   m.msg_iov = iov.data();
   m.msg_iovlen = n;
   std::size_t expected = 0;
   for (std::size_t i = 0; i < n; ++i) expected += iov[i].iov_len;
-  // Connected: no address, so the kernel keeps the socket's cached route. A
-  // socket re-created while the group had no route is not connected: then
-  // with the address, as LCM sends.
-  ssize_t sent = sendmsg(fd_, &m, MSG_DONTWAIT | MSG_NOSIGNAL);
-  if (sent < 0 && (errno == EDESTADDRREQ || errno == ENOTCONN)) {
-    m.msg_name = &destination_;
-    m.msg_namelen = sizeof destination_;
-    sent = sendmsg(fd_, &m, MSG_DONTWAIT | MSG_NOSIGNAL);
-  }
+  const ssize_t sent = sendmsg(fd_, &m, MSG_DONTWAIT | MSG_NOSIGNAL);
   if (sent < 0) return errno;
   return static_cast<std::size_t>(sent) == expected ? 0 : EMSGSIZE;
 }

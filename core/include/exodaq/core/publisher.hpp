@@ -94,12 +94,8 @@ class Publisher {
 
   // Starts the publisher thread (sending from the ring, or only watching the
   // episodes when the loop sends).
-  void start(int loop_priority = 0);
-  void stop() noexcept;
-  // CANDIDATE (issue 17 measurements, temporary): the loop's next deadline.
-  void expect_cycle_at(std::int64_t deadline_ns) noexcept {
-    next_deadline_.store(deadline_ns, std::memory_order_release);
-  }  // drains what is queued, then joins
+  void start();
+  void stop() noexcept;  // drains what is queued, then joins
 
   // Loop thread: a slot to encode into, or nullptr when the ring is full (the
   // message is dropped and counted). commit() hands it over (sends it, when
@@ -123,7 +119,6 @@ class Publisher {
 
  private:
   void run() noexcept;
-  void run_scheduled() noexcept;  // CANDIDATE
   bool publish_one() noexcept;
   void deliver(const OutgoingMessage& msg) noexcept;
   void supervise(std::int64_t now_ns) noexcept;
@@ -157,10 +152,6 @@ class Publisher {
   std::int64_t reopen_delay_ns_ = 0;
   std::int64_t next_reopen_ns_ = 0;
   std::atomic<bool> stopping_{false};
-  // CANDIDATE (issue 17): EXODAQ_PUBLISH_MODE=thread|thread-rt|scheduled|loop
-  int mode_ = 0;
-  std::atomic<std::int64_t> next_deadline_{0};
-  std::atomic<std::uint64_t> cycles_notified_{0};
   sem_t ready_{};
   std::thread thread_;
   bool reserved_ = false;
