@@ -212,7 +212,14 @@ def analyse(a, work, rc, summary, status, facts):
             "the first status after it: DEGRADED, what was lost and since when",
             json.dumps(after[0]) if after else "no status after the recovery")
     running_again = [t for t, _, text in lines if "service state: running" in text and t > t_fail]
-    c.check(running_again, "RUNNING again before the end")
+    # On a loaded machine overruns after the recovery may keep the service
+    # DEGRADED (it needs clean windows to recover): then no new publish failure
+    # and more overruns than at the recovery explain it.
+    overruns_at = [int(m.group(1)) for s in after for m in [re.search(r"(\d+) overruns", s["message"])] if m]
+    later_overruns = bool(overruns_at) and overruns > overruns_at[0]
+    c.check(running_again or (later_overruns and final and final["publish_failures"] == lost),
+            "RUNNING again before the end (or kept DEGRADED only by later overruns)",
+            f"running again: {bool(running_again)}, overruns {overruns_at[:1]} -> {overruns}")
     report["first_status_after"] = after[0] if after else None
     return c, report
 
