@@ -127,7 +127,13 @@ def e2e(res):
           "its wake-up, the loop-deadline figures do, hence the judged comparison is deadline → receipt",
           "on both sides. On loopback the sender's `sendmsg` also delivers the datagram to every",
           "subscribed socket on the host (the receive side runs in the sender's system call): that is",
-          "most of its cost, and it grows with the number of local subscribers (*Scaling*).\n",
+          "most of its cost, and it grows with the number of local subscribers (*Scaling*): every socket",
+          "on the host bound to the group's port counts, including other programs' LCM subscribers.",
+          "Because the loop sends, status_t's in-loop work (wake-up → end of cycle) now includes those",
+          "`sendmsg` calls: the in-daemon p99 ≤ 5 µs target, written when the cycle ended with a commit to",
+          "a ring, cannot be met while the loop sends three messages on loopback; the cycle's own work is",
+          "the *rest* row, to compare with the harness rows of *Cycle work* (the same code back to back:",
+          "the difference is cold caches and TLB after a millisecond asleep, and a loaded machine).\n",
           "Commands (per policy, started together; the subscribers first):\n", "```"]
     L += [cmd for e in e2e.values() for cmd in e["commands"]]
     return L + ["```\n"]
