@@ -18,6 +18,7 @@
 #include <sstream>
 #include <thread>
 
+#include "exodaq/messages/message.hpp"
 #include "exodaq/status_t.hpp"
 #include "exodaq/wire_constants.hpp"
 #include "process.hpp"
@@ -99,6 +100,10 @@ void expect_clean_stop(test::Process& daemon, StatusRecorder& recorder, const st
   ASSERT_FALSE(statuses.empty()) << "no status heard";
   EXPECT_EQ(statuses.back().state, wire::status::STATE_STOPPING) << test::read_file(log);
   EXPECT_NE(test::read_file(log).find("stopped after"), std::string::npos) << test::read_file(log);
+  // Issue 15.8: the log spells the run id as every tool does (16 hex digits).
+  EXPECT_NE(test::read_file(log).find(", run id " + msg::run_id_text(statuses.back().run_id)),
+            std::string::npos)
+      << test::read_file(log);
 }
 
 }  // namespace
