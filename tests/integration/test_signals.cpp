@@ -233,6 +233,8 @@ TEST(RealTime, RefusedSchedFifoIsAWarning) {
   for (const char* a : {EXODAQD, "--config", config.c_str(), "--duration", "0.5"})
     argv.emplace_back(a);
   const auto r = test::run(argv, 30s);
+  if (r.exit_code != 0 && (r.err.rfind("setpriv:", 0) == 0 || r.err.rfind("prlimit:", 0) == 0))
+    GTEST_SKIP() << "cannot drop the privilege here: " << r.err;
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("warning loop thread: SCHED_FIFO refused (Operation not permitted), "
                        "running SCHED_OTHER"),
