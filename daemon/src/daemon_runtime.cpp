@@ -544,7 +544,7 @@ void Supervisor::watch_publishing(std::int64_t now) {
     const std::string f = fields({{"EXODAQ_EVENT", line.event},
                                   {"EXODAQ_STATE", state_name(acq_.state())},
                                   {"EXODAQ_ERRNO", std::to_string(line.error)},
-                                  {"EXODAQ_RUN_ID", std::to_string(acq_.run_id())}});
+                                  {"EXODAQ_RUN_ID", msg::run_id_text(acq_.run_id())}});
     if (line.warning) {
       spdlog::warn("{}{}", line.text, f);
     } else {
