@@ -113,21 +113,27 @@ void JointTracker::update_velocity(std::int64_t t_ns) noexcept {
     return;
   }
   // Least-squares slope of count over time, in coordinates relative to the
-  // newest sample so the sums stay small and exact enough in double.
+  // newest sample so the sums stay small and exact enough in double. Summed
+  // oldest first whatever the ring's phase, so a replay that starts mid-run
+  // (its ring filled from slot 0) gets the live value to the bit.
+  const int w = config_.velocity_window;
+  const auto slot = [&](int k) {
+    return static_cast<std::size_t>((vel_head_ - vel_n_ + k + 2 * w) % w);
+  };
   double st = 0.0;
   double sc = 0.0;
-  for (int i = 0; i < vel_n_; ++i) {
-    st += static_cast<double>(vel_t_[static_cast<std::size_t>(i)] - t_ns) * 1e-9;
-    sc += static_cast<double>(vel_c_[static_cast<std::size_t>(i)] - count_);
+  for (int k = 0; k < vel_n_; ++k) {
+    st += static_cast<double>(vel_t_[slot(k)] - t_ns) * 1e-9;
+    sc += static_cast<double>(vel_c_[slot(k)] - count_);
   }
   const double n = vel_n_;
   const double tm = st / n;
   const double cm = sc / n;
   double stt = 0.0;
   double stc = 0.0;
-  for (int i = 0; i < vel_n_; ++i) {
-    const double dt = static_cast<double>(vel_t_[static_cast<std::size_t>(i)] - t_ns) * 1e-9 - tm;
-    const double dc = static_cast<double>(vel_c_[static_cast<std::size_t>(i)] - count_) - cm;
+  for (int k = 0; k < vel_n_; ++k) {
+    const double dt = static_cast<double>(vel_t_[slot(k)] - t_ns) * 1e-9 - tm;
+    const double dc = static_cast<double>(vel_c_[slot(k)] - count_) - cm;
     stt += dt * dt;
     stc += dt * dc;
   }
