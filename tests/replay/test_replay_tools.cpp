@@ -208,9 +208,9 @@ Excerpt cut_excerpt(const std::vector<LogEvent>& log, const std::string& raw_cha
 }
 
 // Every replayed cycle of the excerpt equals the reference's of the same seq,
-// the replay mark aside; velocities once the fit's window lies inside the
-// excerpt (its first velocity_window - 1 = 20 samples are fitted over what the
-// excerpt holds). Returns the cycles compared and how many had a valid pose.
+// the replay mark aside; a joint's velocity from its 21st fresh sample in the
+// excerpt on (velocity_window 21: before that, the live fit used samples from
+// before the excerpt). Returns the cycles compared and how many had a valid pose.
 std::pair<std::size_t, std::size_t> expect_same_cycles(
     const std::map<std::int64_t, joint_state_t>& ref_joint,
     const std::map<std::int64_t, palm_pose_t>& ref_palm, const std::string& replay,
@@ -218,10 +218,14 @@ std::pair<std::size_t, std::size_t> expect_same_cycles(
   const auto log = read_log(replay);
   const auto rep_joint = messages_by_seq<joint_state_t>(log, p + "EXO_JOINT_STATE");
   const auto rep_palm = messages_by_seq<palm_pose_t>(log, p + "EXO_PALM_POSE");
-  constexpr std::int64_t kWarmUp = 20;
+  constexpr int kWindow = 21;
+  std::array<int, 6> fresh{};
   std::size_t compared = 0;
   std::size_t valid = 0;
   for (const auto& [seq, rj0] : rep_joint) {
+    for (std::size_t j = 0; j < 6; ++j) {
+      if ((rj0.flags[j] & joint_state_t::JOINT_HELD) == 0) ++fresh[j];
+    }
     if (ref_joint.count(seq) == 0 || ref_palm.count(seq) == 0 || rep_palm.count(seq) == 0) {
       continue;
     }
@@ -229,15 +233,20 @@ std::pair<std::size_t, std::size_t> expect_same_cycles(
     joint_state_t lj = ref_joint.at(seq);
     EXPECT_EQ(rj.sample_flags & kSampleReplay, kSampleReplay) << "seq " << seq;
     if (!ref_is_replay) rj.sample_flags &= ~kSampleReplay;
-    if (seq < first_seq + kWarmUp) {
-      for (int j = 0; j < 6; ++j) rj.velocity[j] = lj.velocity[j];
+    for (std::size_t j = 0; j < 6; ++j) {
+      if (fresh[j] < kWindow) rj.velocity[j] = lj.velocity[j];
     }
     if (bytes_of(rj) != bytes_of(lj)) {
+      std::ostringstream d;
+      d << " sample_flags " << lj.sample_flags << "/" << rj.sample_flags;
+      for (std::size_t j = 0; j < 6; ++j) {
+        d << "; j" << j << " homed " << int(lj.homed[j]) << "/" << int(rj.homed[j]) << " count "
+          << lj.raw_count[j] << "/" << rj.raw_count[j] << " pos " << lj.position[j] << "/"
+          << rj.position[j] << " flags " << lj.flags[j] << "/" << rj.flags[j] << " vel "
+          << lj.velocity[j] << "/" << rj.velocity[j] << " (fresh " << fresh[j] << ")";
+      }
       ADD_FAILURE() << replay << ": joint_state_t differs at seq " << seq << " (excerpt from "
-                    << first_seq << "): homed0 " << int(lj.homed[0]) << "/" << int(rj.homed[0])
-                    << " count0 " << lj.raw_count[0] << "/" << rj.raw_count[0] << " pos0 "
-                    << lj.position[0] << "/" << rj.position[0] << " flags0 " << lj.flags[0] << "/"
-                    << rj.flags[0] << " vel0 " << lj.velocity[0] << "/" << rj.velocity[0];
+                    << first_seq << "):" << d.str();
       return {compared, valid};
     }
     const palm_pose_t& lp = ref_palm.at(seq);
