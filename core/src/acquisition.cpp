@@ -78,7 +78,7 @@ Acquisition::Acquisition(AcquisitionConfig config, std::unique_ptr<PipelineConfi
       pipeline_(configs_.active()),
       time_base_(make_time_base(*source_, clock_shared_, config_.clock, config_.period_ns)),
       run_id_(config_.run_id != 0 ? config_.run_id : new_run_id()),
-      encoder_(config_.joint_names, run_id_, config_.publish_raw),
+      encoder_(config_.joint_names, run_id_, config_.publish_raw, config_.period_ns),
       status_(status_settings(config_, *source_, *time_base_, run_id_), pipeline_, clock_shared_) {
   if (config_.status_every_cycles < 1) config_.status_every_cycles = 1;
 }
@@ -90,6 +90,7 @@ Acquisition::~Acquisition() {
 void Acquisition::prepare_for_manual_cycles() {
   if (started_) return;
   source_->start();
+  if (const drivers::JointResumeSet* resume = source_->resume_state()) pipeline_.resume(*resume);
   clock_monitor_ = std::make_unique<ClockMonitor>(*clock_, config_.clock, clock_shared_);
   encoder_.warm_up();
   status_.warm_up();
@@ -208,6 +209,7 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   result_.mono_ns = sample_.mono_ns;
   last_emitted_mono_ns_ = sample_.mono_ns;
   result_.utime_us = time.utime_us;
+  encoder_.publish_homing(result_, pipeline_, publisher_);
   encoder_.publish(result_, sample_, publisher_);
   push_joint_events();
 
