@@ -65,6 +65,7 @@ ServiceState StatusAssembler::close_window(ServiceState current, const WindowEnd
   status_.seq = end.seq;
   status_.state = static_cast<std::int8_t>(next);
   status_.window_cycles = facts_.cycles;
+  status_.foreign_run_id = end.foreign_run_id;
   fill_timing(end);
   fill_counters(end);
   fill_joints_and_text(next, end.overruns);
@@ -148,7 +149,13 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, std::int64_t over
   }
   if ((facts_.sample_flags_or & drivers::sample_flag::kClockUnsync) != 0 && n > 0 &&
       n < static_cast<int>(sizeof(text))) {
-    std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n), "; clock unsynchronised");
+    n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
+                       "; clock unsynchronised");
+  }
+  if (s.foreign_run_id != 0 && n > 0 && n < static_cast<int>(sizeof(text))) {
+    std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
+                  "; ANOTHER RUN %016llx on these channels",
+                  static_cast<unsigned long long>(s.foreign_run_id));
   }
   s.message.assign(text);
 }
