@@ -219,3 +219,41 @@ TEST(Instance, ExportOfInterleavedRunsFailsClearly) {
   EXPECT_EQ(lines, 21u);  // header + 20 cycles of the one run
   EXPECT_EQ(csv.find("1111111111111111"), std::string::npos);
 }
+
+// Two publishers interleaved on one status channel: exodaq status, exodaq echo
+// and the Python Subscriber each warn on stderr, naming both run ids.
+TEST(Instance, SubscribersWarnWhenTwoRunsInterleave) {
+  const std::string dir = test::make_temp_dir("instance-mix");
+  const std::string prefix = test::unique_prefix("mix");
+  const std::string channel = prefix + "EXO_STATUS";
+  test::Process a(publisher_argv(channel, 50, 60), dir + "/a.out", dir + "/a.err");
+  test::Process b({EXODAQ_STATUS_PUBLISHER, test::kLcmUrl, channel, "00000000000000bb", "50", "60"},
+                  dir + "/b.out", dir + "/b.err");
+  std::this_thread::sleep_for(300ms);
+  const auto status = test::run({EXODAQ_TOOL, "status", "--prefix", prefix, "-t", "10"}, 30s);
+  EXPECT_EQ(status.exit_code, 0) << status.err;
+  EXPECT_NE(status.err.find("WARNING: two runs interleaved"), std::string::npos) << status.err;
+  const auto echo = test::run(
+      {EXODAQ_TOOL, "echo", "--channel", "status", "--prefix", prefix, "--csv", "--duration", "1"},
+      30s);
+  EXPECT_EQ(echo.exit_code, 0) << echo.err;
+  EXPECT_NE(echo.err.find("WARNING: two runs interleaved"), std::string::npos) << echo.err;
+  EXPECT_NE(echo.err.find(kForeignRun), std::string::npos) << echo.err;
+  EXPECT_NE(echo.err.find("00000000000000bb"), std::string::npos) << echo.err;
+  const auto py = test::run({EXODAQ_PYTHON, "-c",
+                             "import exodaq\n"
+                             "s = exodaq.Subscriber(url='" +
+                                 test::kLcmUrl + "', prefix='" + prefix +
+                                 "', kinds=('status',))\n"
+                                 "for m in s.messages(count=40, timeout=10): pass\n"
+                                 "print(sorted(exodaq.run_id_text(r) for r in s.mixed_runs))\n"},
+                            30s, {{"PYTHONPATH", EXODAQ_PYTHONPATH}});
+  EXPECT_EQ(py.exit_code, 0) << py.err;
+  EXPECT_NE(py.out.find("['00000000000000bb', '0123456789abcdef']"), std::string::npos)
+      << py.out << py.err;
+  EXPECT_NE(py.err.find("WARNING: two runs interleaved"), std::string::npos) << py.err;
+  a.signal(SIGTERM);
+  b.signal(SIGTERM);
+  a.wait(10s);
+  b.wait(10s);
+}

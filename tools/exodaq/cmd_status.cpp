@@ -128,7 +128,7 @@ int run_status(StatusOptions opt) {
       [](const msg::RunMix& mix) { print_error("WARNING: " + msg::describe(mix)); });
   int64_t end = mono_now_ns() + static_cast<int64_t>(opt.timeout * 1e9);
   bool listened_on = false;
-  while (!got || !listened_on) {
+  for (;;) {
     if (got && !listened_on) {
       // A few status periods more: another daemon on this channel shows up as a second run id.
       end = std::min(end, mono_now_ns() + kMixWatchNs);
