@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <string>
 #include <thread>
 
@@ -18,6 +19,7 @@
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/message.hpp"
 #include "exodaq/messages/run_mix.hpp"
+#include "exodaq/messages/subscriber.hpp"
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
 #include "recording.hpp"
@@ -59,6 +61,18 @@ std::vector<std::string> publisher_argv(const std::string& channel, double rate_
                                         double seconds) {
   return {EXODAQ_STATUS_PUBLISHER, test::kLcmUrl,          channel, kForeignRun,
           std::to_string(rate_hz), std::to_string(seconds)};
+}
+
+// Until `runs` fake publishers are heard on `channel` (they may start slowly
+// on a loaded machine).
+bool heard(const std::string& channel, std::size_t runs = 1) {
+  msg::Subscriber sub(test::kLcmUrl);
+  std::set<std::int64_t> got;
+  sub.subscribe(channel, msg::Kind::kStatus,
+                [&got](const msg::Received& r) { got.insert(std::get<status_t>(r.msg).run_id); });
+  const auto end = std::chrono::steady_clock::now() + 20s;
+  while (got.size() < runs && std::chrono::steady_clock::now() < end) sub.handle(100);
+  return got.size() >= runs;
 }
 
 }  // namespace
@@ -118,7 +132,7 @@ TEST(Instance, RunIdHeardAtStartUpIsRefused) {
   const std::string config = test::write_sim_config(dir, prefix);
   test::Process foreign(publisher_argv(prefix + "EXO_STATUS", 100, 60), dir + "/pub.out",
                         dir + "/pub.err");
-  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(heard(prefix + "EXO_STATUS"));
   const auto r = test::run({EXODAQD, "--config", config, "--duration", "3"}, 30s, runtime_env(dir));
   EXPECT_NE(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find(std::string("run id ") + kForeignRun), std::string::npos) << r.err;
@@ -229,7 +243,7 @@ TEST(Instance, SubscribersWarnWhenTwoRunsInterleave) {
   test::Process a(publisher_argv(channel, 50, 60), dir + "/a.out", dir + "/a.err");
   test::Process b({EXODAQ_STATUS_PUBLISHER, test::kLcmUrl, channel, "00000000000000bb", "50", "60"},
                   dir + "/b.out", dir + "/b.err");
-  std::this_thread::sleep_for(300ms);
+  ASSERT_TRUE(heard(channel, 2));
   const auto status = test::run({EXODAQ_TOOL, "status", "--prefix", prefix, "-t", "10"}, 30s);
   EXPECT_EQ(status.exit_code, 0) << status.err;
   EXPECT_NE(status.err.find("WARNING: two runs interleaved"), std::string::npos) << status.err;
