@@ -242,9 +242,11 @@ TEST(Acquisition, AForeignRunFlagsEverySampleAndDegradesUntilCleared) {
       const bool during = st.seq >= 299 && st.seq < 400;  // windows wholly inside
       if (during) {
         EXPECT_EQ(st.foreign_run_id, kForeign) << st.seq;
-        EXPECT_EQ(st.state, exodaq::status_t::STATE_DEGRADED) << st.seq;
+        EXPECT_EQ(st.state, int{exodaq::status_t::STATE_DEGRADED}) << st.seq;
       }
-      if (st.seq < 200 || st.seq >= 499) EXPECT_EQ(st.foreign_run_id, 0) << st.seq;
+      if (st.seq < 200 || st.seq >= 499) {
+        EXPECT_EQ(st.foreign_run_id, 0) << st.seq;
+      }
     }
   }
   EXPECT_EQ(flagged, 200);
