@@ -159,6 +159,13 @@ status_t make_status() {
   m.clock_offset_us = -3.25;
   m.utime_correction_us = 0.5;
   m.clock_steps = 1;
+  m.config_path = "/etc/exodaq/exodaqd.yaml";
+  m.config_sha256 = std::string(64, 'a');
+  m.calibration_path = "/etc/exodaq/calibration.yaml";
+  m.calibration_sha256 = std::string(64, 'b');
+  m.calibration_provenance = "exodaq calibrate, 2026-11-30, rms 0.4 mm";
+  m.reloads = 2;
+  m.foreign_run_id = 0x0123456789abcdef;
   const int8_t homing[6] = {status_t::HOMING_HOMED,    status_t::HOMING_UNHOMED,
                             status_t::HOMING_HOMED,    status_t::HOMING_HOMED,
                             status_t::HOMING_REJECTED, status_t::HOMING_HOMED};
@@ -239,8 +246,10 @@ void dump(const status_t& m) {
       D(publish_failures), D(source), D(frames), D(bad_frames), D(missing_samples), D(seq_gaps),
       D(duplicates), D(out_of_order), D(bus_errors), D(rx_overflows), D(bus_state), D(board_errors),
       D(clock_synchronised), D(clock_est_error_us), D(clock_max_error_us), D(clock_offset_us),
-      D(utime_correction_us), D(clock_steps), D(joint_name), D(homing), D(joint_flags), D(glitches),
-      D(lost_count_events), D(stale_events), D(out_of_range_events);
+      D(utime_correction_us), D(clock_steps), D(config_path), D(config_sha256), D(calibration_path),
+      D(calibration_sha256), D(calibration_provenance), D(reloads), D(foreign_run_id),
+      D(joint_name), D(homing), D(joint_flags), D(glitches), D(lost_count_events), D(stale_events),
+      D(out_of_range_events);
 }
 #undef D
 
