@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -90,6 +91,12 @@ std::string lock_path(const std::string& dir, const std::string& url, const std:
 InstanceLock::InstanceLock(const std::string& path, Identity who)
     : path_(path), who_(std::move(who)) {
   fd_ = open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+  if (fd_ < 0 && errno == EACCES) {
+    // Left by another user (a shared /tmp): locking needs no write access,
+    // naming the holder does.
+    fd_ = open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
+    writable_ = false;
+  }
   if (fd_ < 0) {
     throw std::runtime_error("cannot open the instance lock " + path + ": " +
                              strerrordesc_np(errno));
@@ -115,6 +122,7 @@ void InstanceLock::record_run_id(std::int64_t run_id) {
 }
 
 void InstanceLock::write_contents(const std::string& run_id_text) {
+  if (!writable_) return;
   const std::string text = "pid=" + std::to_string(getpid()) + "\nrun_id=" + run_id_text +
                            "\nrig=" + who_.rig + "\nconfig=" + who_.config_path +
                            "\nurl=" + who_.url + "\nprefix=" + who_.prefix + "\n";
@@ -165,7 +173,7 @@ void ForeignRunListener::watch_loop() noexcept {
   pthread_setname_np(pthread_self(), "exodaq-foreign");
   while (!stopping_.load()) {
     try {
-      sub_->handle(100);
+      if (sub_->handle(100) < 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
       end_episode_if_quiet();
     } catch (const std::exception& e) {
       spdlog::error("status listener: {}", e.what());
@@ -181,7 +189,7 @@ void ForeignRunListener::on_status(std::int64_t run_id, const std::string& rig) 
   }
   if (run_id == acq_->run_id()) return;
   last_foreign_ns_ = mono_now_ns();
-  if (run_id == episode_run_id_) return;
+  if (episode_run_id_ != 0) return;  // one error per episode, even with several others
   episode_run_id_ = run_id;
   ++episodes_;
   acq_->set_foreign_run_id(run_id);

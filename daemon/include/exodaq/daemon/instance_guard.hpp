@@ -72,6 +72,7 @@ class InstanceLock {
   std::string path_;
   Identity who_;
   int fd_ = -1;
+  bool writable_ = true;
 };
 
 // Listens on <prefix>EXO_STATUS.
