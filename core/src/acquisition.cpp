@@ -203,6 +203,8 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
     flags |= drivers::sample_flag::kLate;
     previous_overran_ = false;
   }
+  if (foreign_run_id_.load(std::memory_order_relaxed) != 0)
+    flags |= drivers::sample_flag::kForeignRun;
 
   pipeline_.process(sample_, flags, time.clock_invalid, result_);
   result_.seq = seq_;
@@ -302,6 +304,7 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   end.publish_failures = end.publish.failures + end.publish.ring_drops;
   end.utime_correction_ns = time_base_->utime_correction_ns();
   end.clock_steps = time_base_->clock_steps();
+  end.foreign_run_id = foreign_run_id_.load(std::memory_order_relaxed);
 
   const ServiceState previous = state_.load(std::memory_order_relaxed);
   const ServiceState next = status_.close_window(previous, end);

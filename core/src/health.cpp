@@ -49,6 +49,8 @@ ServiceState next_state(ServiceState current, const WindowFacts& f,
     if (current == ServiceState::kStarting && !bus_dead) return current;
     return ServiceState::kFault;
   }
+  // Another run on our channels: degraded, whatever homing says (docs/operations.md).
+  if ((f.sample_flags_or & drivers::sample_flag::kForeignRun) != 0) return ServiceState::kDegraded;
   if (f.samples_present == 0 && current == ServiceState::kStarting) return current;
   if (!f.all_homed) return ServiceState::kHoming;
   std::uint32_t joint_faults = 0;
@@ -58,7 +60,8 @@ ServiceState next_state(ServiceState current, const WindowFacts& f,
       drivers::sample_flag::kMissing | drivers::sample_flag::kSeqGap |
       drivers::sample_flag::kDuplicate | drivers::sample_flag::kOutOfOrder |
       drivers::sample_flag::kBoardError | drivers::sample_flag::kBusError |
-      drivers::sample_flag::kPartial | drivers::sample_flag::kClockStep;
+      drivers::sample_flag::kPartial | drivers::sample_flag::kClockStep |
+      drivers::sample_flag::kForeignRun;
   const bool clean = joint_faults == 0 && (f.sample_flags_or & bad_samples) == 0 &&
                      f.overruns == 0 && f.publish_failures == 0 && !f.clock_hold;
   return clean ? ServiceState::kRunning : ServiceState::kDegraded;

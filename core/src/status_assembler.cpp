@@ -95,6 +95,7 @@ ServiceState StatusAssembler::close_window(ServiceState current, const WindowEnd
   status_.seq = end.seq;
   status_.state = static_cast<std::int8_t>(next);
   status_.window_cycles = facts_.cycles;
+  status_.foreign_run_id = end.foreign_run_id;
   fill_timing(end);
   fill_counters(end);
   fill_joints_and_text(next, end);
@@ -181,6 +182,11 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, const WindowEnd& 
       n < static_cast<int>(sizeof(text))) {
     n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
                        "; clock unsynchronised");
+  }
+  if (s.foreign_run_id != 0 && n > 0 && n < static_cast<int>(sizeof(text))) {
+    n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
+                  "; ANOTHER RUN %016llx on these channels",
+                  static_cast<unsigned long long>(s.foreign_run_id));
   }
   append_publish_text(text, n, static_cast<int>(sizeof(text)), state, end);
   s.message.assign(text);

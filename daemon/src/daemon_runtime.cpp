@@ -29,6 +29,7 @@
 #include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
+#include "exodaq/daemon/instance_guard.hpp"
 #include "exodaq/drivers/backend.hpp"
 #include "exodaq/messages/message.hpp"
 #include "exodaq/version.hpp"
@@ -416,10 +417,33 @@ void shut_down_logging(const Logging& logging) {
   spdlog::shutdown();
 }
 
+// Why the daemon cannot start: to the log, systemd's STATUS= and stderr.
+void report_start_failure(const std::string& what, const Logging& logging) {
+  spdlog::critical("cannot start: {}{}", what, fields({{"EXODAQ_EVENT", "start_failed"}}));
+  notify("STATUS=cannot start: " + what);
+  shut_down_logging(logging);
+  if (!logging.journal) std::fprintf(stderr, "exodaqd: cannot start: %s\n", what.c_str());
+}
+
+// The channel set claimed for this daemon alone (instance_guard.hpp), or null
+// after reporting who else publishes on it.
+std::unique_ptr<ChannelClaim> claim_channels(const ServiceConfig& config,
+                                             const DaemonOptions& options, const Logging& logging) {
+  try {
+    auto claim = std::make_unique<ChannelClaim>(config, options.config_path);
+    spdlog::info("channel set claimed: lock {}, nobody heard on the status channel for {} ms",
+                 claim->lock_file(), claim->listened_ms());
+    return claim;
+  } catch (const std::exception& e) {
+    report_start_failure(e.what(), logging);
+    return nullptr;
+  }
+}
+
 // The running acquisition, or null after reporting why it cannot start.
 std::unique_ptr<Acquisition> start_acquisition(const ServiceConfig& config,
-                                               const DaemonOptions& options,
-                                               const Logging& logging) {
+                                               const DaemonOptions& options, const Logging& logging,
+                                               ChannelClaim& claim) {
   AcquisitionOptions acquisition;
   if (!options.lateness_log.empty()) {
     const double seconds = options.duration_s > 0 ? options.duration_s + 5.0 : 3600.0;
@@ -427,13 +451,16 @@ std::unique_ptr<Acquisition> start_acquisition(const ServiceConfig& config,
   }
   try {
     auto acq = build_acquisition(config, std::move(acquisition));
-    acq->start();
+    claim.attach(*acq);
+    try {
+      acq->start();
+    } catch (...) {
+      claim.detach();  // the listener holds `acq`
+      throw;
+    }
     return acq;
   } catch (const std::exception& e) {
-    spdlog::critical("cannot start: {}{}", e.what(), fields({{"EXODAQ_EVENT", "start_failed"}}));
-    notify("STATUS=cannot start: " + std::string(e.what()));
-    shut_down_logging(logging);
-    if (!logging.journal) std::fprintf(stderr, "exodaqd: cannot start: %s\n", e.what());
+    report_start_failure(e.what(), logging);
     return nullptr;
   }
 }
@@ -714,10 +741,13 @@ int run_daemon(const DaemonOptions& options) {
   if (const auto exit_code = load_config(options, config)) return *exit_code;
   const Logging logging = make_logger(config.logging, options.log_level);
   const std::int64_t started_ns = mono_now_ns();
-  const std::unique_ptr<Acquisition> acq = start_acquisition(config, options, logging);
+  const std::unique_ptr<ChannelClaim> claim = claim_channels(config, options, logging);
+  if (!claim) return 1;
+  const std::unique_ptr<Acquisition> acq = start_acquisition(config, options, logging, *claim);
   if (!acq) return 1;
   log_started(config, acq->run_id());
   Supervisor(*acq, config, options, signals, started_ns).run();
+  claim->detach();
   shut_down(*acq, options, logging);
   return 0;
 }

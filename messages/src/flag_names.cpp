@@ -60,7 +60,8 @@ std::string sample_flag_names(std::int32_t flags) {
                            {joint_state_t::SAMPLE_CLOCK_UNSYNC, "CLOCK_UNSYNC"},
                            {joint_state_t::SAMPLE_LATE, "LATE"},
                            {joint_state_t::SAMPLE_PARTIAL, "PARTIAL"},
-                           {joint_state_t::SAMPLE_REPLAY, "REPLAY"}});
+                           {joint_state_t::SAMPLE_REPLAY, "REPLAY"},
+                           {joint_state_t::SAMPLE_FOREIGN_RUN, "FOREIGN_RUN"}});
 }
 
 std::string invalid_reason_names(std::int32_t reasons) {

@@ -34,6 +34,13 @@ void Subscriber::on_raw(const lcm::ReceiveBuffer* rbuf, const std::string& chann
     ++sub->owner->undecodable_;
     return;
   }
+  if (const auto parts = split_channel(channel)) {
+    Subscriber& owner = *sub->owner;
+    if (auto mix = owner.runs_.observe(parts->prefix, stamp_of(*msg).run_id);
+        mix && owner.mix_handler_) {
+      owner.mix_handler_(*mix);
+    }
+  }
   sub->handler(Received{channel, std::move(*msg), rbuf->recv_utime});
 }
 

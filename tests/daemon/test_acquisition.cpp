@@ -243,6 +243,44 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
   EXPECT_EQ(expected_seq, 1000);
 }
 
+// The listener's hand-over: from the cycle after set_foreign_run_id() every
+// sample is FOREIGN_RUN and the status names the run, degraded; 0 ends it.
+TEST(Acquisition, AForeignRunFlagsEverySampleAndDegradesUntilCleared) {
+  MemorySink* sink = nullptr;
+  auto acq = make_acquisition(std::make_unique<RampSource>(), sink);
+  sink->keep = true;
+  acq->prepare_for_manual_cycles();
+  const std::int64_t t0 = 100 * 1'000'000'000LL;
+  constexpr std::int64_t kForeign = 0x0123456789abcdef;
+  for (int k = 0; k < 600; ++k) {
+    if (k == 200) acq->set_foreign_run_id(kForeign);
+    if (k == 400) acq->set_foreign_run_id(0);
+    ASSERT_TRUE(acq->run_cycle(t0 + k * kMs, t0 + k * kMs + 20'000));
+    acq->publisher().drain();
+  }
+  int flagged = 0;
+  for (const auto& [channel, bytes] : sink->kept) {
+    if (channel == exodaq::msg::Kind::kJointState) {
+      const auto js = decode<exodaq::joint_state_t>(bytes);
+      const bool foreign = (js.sample_flags & exodaq::joint_state_t::SAMPLE_FOREIGN_RUN) != 0;
+      EXPECT_EQ(foreign, js.seq >= 200 && js.seq < 400) << js.seq;
+      flagged += foreign ? 1 : 0;
+    }
+    if (channel == exodaq::msg::Kind::kStatus) {
+      const auto st = decode<exodaq::status_t>(bytes);
+      const bool during = st.seq >= 299 && st.seq < 400;  // windows wholly inside
+      if (during) {
+        EXPECT_EQ(st.foreign_run_id, kForeign) << st.seq;
+        EXPECT_EQ(st.state, int{exodaq::status_t::STATE_DEGRADED}) << st.seq;
+      }
+      if (st.seq < 200 || st.seq >= 499) {
+        EXPECT_EQ(st.foreign_run_id, 0) << st.seq;
+      }
+    }
+  }
+  EXPECT_EQ(flagged, 200);
+}
+
 TEST(Acquisition, PalmIsValidOnlyWhenHomedAndTheSampleIsPresent) {
   MemorySink* sink = nullptr;
   auto src = std::make_unique<RampSource>();

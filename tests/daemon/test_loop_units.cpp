@@ -202,6 +202,18 @@ TEST(ServiceStateMachine, ARecordingsWindowWithSamplesIsNeverAFault) {
   EXPECT_EQ(recorded.next(core::ServiceState::kRunning, bus_off, 0), core::ServiceState::kFault);
 }
 
+TEST(ServiceStateMachine, AForeignRunDegradesEvenWhileHomingButNotAFault) {
+  using S = core::ServiceState;
+  core::WindowFacts foreign = clean_window();
+  foreign.sample_flags_or |= drivers::sample_flag::kForeignRun;
+  EXPECT_EQ(core::next_state(S::kRunning, foreign, 0, 500), S::kDegraded);
+  foreign.all_homed = false;
+  EXPECT_EQ(core::next_state(S::kHoming, foreign, 0, 500), S::kDegraded);
+  EXPECT_EQ(core::next_state(S::kStarting, foreign, 0, 500), S::kDegraded);
+  EXPECT_EQ(core::next_state(S::kHoming, foreign, 501, 500), S::kFault);
+  EXPECT_EQ(core::next_state(S::kStopping, foreign, 0, 500), S::kStopping);
+}
+
 TEST(MessageEncoder, PalmFirstThenJointsThenRawAllocatingNothing) {
   const auto cfg = sim_config();
   const auto acq_config = core::make_acquisition_config(cfg);
@@ -318,6 +330,14 @@ TEST(StatusAssembler, AWindowBecomesAStatusAndTheNextWindowStartsEmpty) {
   status.close_window(core::ServiceState::kHoming, end);
   EXPECT_EQ(status.message().window_cycles, 1);
   EXPECT_EQ(status.message().joint_flags[1], static_cast<std::int32_t>(core::joint_flag::kUnhomed));
+  EXPECT_EQ(status.message().foreign_run_id, 0);
+  // Another run heard: named in the status and in its message.
+  end.foreign_run_id = 0x0123456789abcdef;
+  status.count_cycle(core::CycleResult{}, true, false, 0, 1);
+  status.close_window(core::ServiceState::kHoming, end);
+  EXPECT_EQ(status.message().foreign_run_id, 0x0123456789abcdef);
+  EXPECT_NE(status.message().message.find("ANOTHER RUN 0123456789abcdef"), std::string::npos)
+      << status.message().message;
 }
 
 TEST(EventRing, AFullRingDropsAndCounts) {

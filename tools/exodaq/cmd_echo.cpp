@@ -304,6 +304,10 @@ int run_echo(EchoOptions opt) {
   msg::Subscriber subscriber(opt.url);
   install_stop_handlers();
   subscribe(run, subscriber);
+  subscriber.on_mixed_runs([&run](const msg::RunMix& mix) {
+    if (!run.csv) std::fputs("\n", stdout);  // below the table
+    print_error("WARNING: " + msg::describe(mix) + "; rows of both are shown");
+  });
   if (!run.csv) std::fputs("\x1b[?25l", stdout);  // hide the cursor while redrawing
 
   const int rc = echo_loop(run, subscriber);

@@ -1,9 +1,11 @@
 // exodaq export: an LCM log (lcm-logger or exodaq replay) to CSV, one row per
 // cycle: the joint_state_t of that seq joined with its palm_pose_t.
-//   exodaq export LOG [-o OUT.csv|-] [--prefix P]
+//   exodaq export LOG [-o OUT.csv|-] [--prefix P] [--run-id RUN]
 // The columns are the CSV schema of docs/messages.md (exodaq/messages/csv.hpp);
 // values are exact. The daemon's all-zero start-up messages are left out. A
 // cycle whose palm_pose_t is missing from the log keeps empty palm columns.
+// Runs one after another are exported in turn; two runs interleaved (two
+// daemons on one channel set) are refused unless --run-id chooses one.
 // The output appears only when the log could be read (a damaged log: what
 // could be read, and exit 1 naming the damaged bytes).
 #include <cstdio>
@@ -19,6 +21,7 @@
 #include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/message.hpp"
+#include "exodaq/messages/run_mix.hpp"
 #include "export_csv.hpp"
 
 namespace exodaq::tools {
@@ -98,12 +101,13 @@ std::string choose_prefix(const std::string& log_path, const std::optional<std::
 }
 
 CsvExport export_log_csv(const std::string& log_path, const std::string& prefix,
-                         files::OutputFile& out) {
+                         files::OutputFile& out, std::optional<std::int64_t> only_run) {
   CsvExport result;
   const std::string joint_channel = msg::channel_name(prefix, msg::Kind::kJointState);
   const std::string palm_channel = msg::channel_name(prefix, msg::Kind::kPalmPose);
   const std::string status_channel = msg::channel_name(prefix, msg::Kind::kStatus);
   CycleWriter writer(out, result);
+  msg::RunMixDetector runs;
   std::int64_t run_id = 0;
   std::map<std::int64_t, Row> pending;  // by seq, this run
   const auto flush_until = [&](std::int64_t seq_limit) {
@@ -119,7 +123,8 @@ CsvExport export_log_csv(const std::string& log_path, const std::string& prefix,
   status_t st;
   while (log.next(ev)) {
     const std::string_view ch = ev.channel;
-    if (result.rig.empty() && ch == status_channel && msg::decode_into(st, ev.data, ev.size)) {
+    if (result.rig.empty() && ch == status_channel && msg::decode_into(st, ev.data, ev.size) &&
+        (!only_run || st.run_id == *only_run)) {
       result.rig = st.rig;
     }
     std::int64_t seq = 0;
@@ -143,6 +148,12 @@ CsvExport export_log_csv(const std::string& log_path, const std::string& prefix,
       rid = pp.run_id;
     } else {
       continue;
+    }
+    if (only_run && rid != *only_run) continue;
+    if (const auto mix = runs.observe(prefix, rid)) {
+      throw MixedRunsError(log_path + ": " + msg::describe(*mix) + "; export one with --run-id " +
+                           msg::run_id_text(mix->first) + " or --run-id " +
+                           msg::run_id_text(mix->second));
     }
     if (rid != run_id) {  // a new daemon run: seq restarts
       flush_until(INT64_MAX);
@@ -174,9 +185,18 @@ struct ExportOptions {
   std::string log;
   std::string out = "-";
   std::string prefix;
+  std::string run_id;  // run_id_text of the one run to export ("": all, unless they interleave)
 };
 
+std::optional<std::int64_t> chosen_run(const ExportOptions& o) {
+  if (o.run_id.empty()) return std::nullopt;
+  const auto id = msg::parse_run_id(o.run_id);
+  if (!id) throw std::runtime_error("--run-id '" + o.run_id + "': not 16 hex digits");
+  return id;
+}
+
 int run_export(const ExportOptions& o, bool prefix_given) {
+  const std::optional<std::int64_t> only_run = chosen_run(o);
   files::OutputOptions oo;
   oo.allow_stdout = true;
   oo.inputs = {o.log};
@@ -188,10 +208,13 @@ int run_export(const ExportOptions& o, bool prefix_given) {
                 msg::channel_name(prefix, msg::Kind::kPalmPose) + " of " + o.log);
   }
   files::OutputFile out(o.out, oo);
-  const CsvExport r = export_log_csv(o.log, prefix, out);
+  const CsvExport r = export_log_csv(o.log, prefix, out, only_run);
   if (r.rows == 0) {
     out.discard();
-    print_error(o.log + ": no cycles (only the daemon's start-up messages?); nothing written");
+    print_error(o.log + ": no cycles" +
+                (only_run ? " of run " + o.run_id
+                          : std::string(" (only the daemon's start-up messages?)")) +
+                "; nothing written");
     return kExitFailure;
   }
   out.commit();
@@ -216,6 +239,9 @@ std::function<int()> setup_export(CLI::App& sub) {
       ->capture_default_str();
   auto* prefix =
       sub.add_option("--prefix", o->prefix, "channel prefix (default: the only one in the log)");
+  sub.add_option("--run-id", o->run_id,
+                 "export only this run (16 hex digits, as exodaq status prints it); needed when "
+                 "two daemons' runs interleave in the log");
   return [o, prefix] { return run_export(*o, prefix->count() > 0); };
 }
 

@@ -1,6 +1,7 @@
 // `exodaq status`: waits for one EXO_STATUS message and prints it for people
 // (or, with --json, as one JSON object in the CSV schema's names). Exit 0 when
 // one arrived, 1 when none did within --timeout.
+#include <algorithm>
 #include <cstdio>
 #include <ctime>
 #include <optional>
@@ -49,6 +50,11 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
               msg::run_id_text(s.run_id).c_str());
   std::printf("state    %s  \"%s\"\n", std::string(msg::state_name(s.state)).c_str(),
               s.message.c_str());
+  if (s.foreign_run_id != 0) {
+    std::printf(
+        "FOREIGN  another run %s publishes on these channels: samples flagged FOREIGN_RUN\n",
+        msg::run_id_text(s.foreign_run_id).c_str());
+  }
   std::printf("time     %s  (received %.3f s later)  seq %lld  cycles %lld\n",
               utc_time(s.utime).c_str(), static_cast<double>(recv_utime - s.utime) * 1e-6,
               ll(s.seq), ll(s.cycles));
@@ -115,6 +121,9 @@ void print_json(const std::string& channel, const status_t& s) {
   std::printf("%s\n}\n", out.c_str());
 }
 
+// After the first status: how long to listen on for another run id (2.5 status periods at 10 Hz).
+constexpr int64_t kMixWatchNs = 250'000'000;
+
 int run_status(StatusOptions opt) {
   if (!opt.config.empty()) {
     const config::ServiceConfig cfg = config::load_service_config(opt.config);
@@ -128,8 +137,16 @@ int run_status(StatusOptions opt) {
   subscriber.subscribe(channel, msg::Kind::kStatus, [&](const msg::Received& r) {
     if (!got) got = r;
   });
-  const int64_t end = mono_now_ns() + static_cast<int64_t>(opt.timeout * 1e9);
-  while (!got) {
+  subscriber.on_mixed_runs(
+      [](const msg::RunMix& mix) { print_error("WARNING: " + msg::describe(mix)); });
+  int64_t end = mono_now_ns() + static_cast<int64_t>(opt.timeout * 1e9);
+  bool listened_on = false;
+  for (;;) {
+    if (got && !listened_on) {
+      // A few status periods more: another daemon on this channel shows up as a second run id.
+      end = std::min(end, mono_now_ns() + kMixWatchNs);
+      listened_on = true;
+    }
     const int64_t left = end - mono_now_ns();
     if (left <= 0) break;
     const int r = subscriber.handle(static_cast<int>(std::max<int64_t>(1, left / 1'000'000)));

@@ -3,6 +3,7 @@
 // schema of exodaq/messages/csv.hpp.
 #include <cstdint>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -27,10 +28,19 @@ struct CsvExport {
 // channel, several rigs without --prefix.
 std::string choose_prefix(const std::string& log_path, const std::optional<std::string>& given);
 
+// Two runs interleaved in a log (two daemons published on one channel set):
+// what() names both run ids and suggests --run-id.
+class MixedRunsError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Writes the log's cycles with prefix `prefix` to `out` (not committed: the
-// caller commits when it is content). Throws msg::LogError on a read error,
-// files::FileError on a write error.
+// caller commits when it is content); with `only_run`, the cycles of that run
+// alone. Throws msg::LogError on a read error, files::FileError on a write
+// error, MixedRunsError when two runs interleave (and `only_run` is not set).
 CsvExport export_log_csv(const std::string& log_path, const std::string& prefix,
-                         files::OutputFile& out);
+                         files::OutputFile& out,
+                         std::optional<std::int64_t> only_run = std::nullopt);
 
 }  // namespace exodaq::tools

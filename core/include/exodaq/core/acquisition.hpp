@@ -66,6 +66,17 @@ class Acquisition {
   // next cycle boundary. The previous configuration is freed off the loop thread.
   void stage_reload(std::unique_ptr<PipelineConfig> config, const ClockPolicy& clock);
 
+  // Any thread (the daemon's listener on the status channel): another run is
+  // heard on our channels (0: no longer). From the next cycle every sample is
+  // flagged FOREIGN_RUN, status_t.foreign_run_id names it and the state is
+  // degraded. One atomic store; the loop only loads it.
+  void set_foreign_run_id(std::int64_t run_id) noexcept {
+    foreign_run_id_.store(run_id, std::memory_order_relaxed);
+  }
+  std::int64_t foreign_run_id() const noexcept {
+    return foreign_run_id_.load(std::memory_order_relaxed);
+  }
+
   bool pop_event(LogEvent& out) noexcept { return events_.pop(out); }
   // Events lost because the ring was full.
   std::int64_t events_dropped() const noexcept { return events_.dropped(); }
@@ -140,6 +151,7 @@ class Acquisition {
 
   std::atomic<std::int64_t> cycles_{0};
   std::atomic<std::int64_t> overruns_{0};
+  std::atomic<std::int64_t> foreign_run_id_{0};
   std::atomic<std::int64_t> published_missing_{0};
   std::atomic<std::int64_t> published_seq_gaps_{0};
   std::atomic<std::int64_t> published_bus_errors_{0};

@@ -37,6 +37,7 @@ struct WindowEnd {
   drivers::SourceStats source;
   std::int64_t utime_correction_ns = 0;  // TimeBase
   std::int64_t clock_steps = 0;
+  std::int64_t foreign_run_id = 0;  // another run heard on our status channel (0: none)
 };
 
 class StatusAssembler {

@@ -1,6 +1,7 @@
 #pragma once
 // Receiving exodaq messages live over LCM, decoded by kind: a thin wrapper
-// over lcm::LCM for the tools and tests (not the daemon). Not thread-safe;
+// over lcm::LCM for the tools, tests and the daemon's status-channel listener
+// (never its loop). Not thread-safe;
 // drive it from one thread with handle().
 #include <cstdint>
 #include <functional>
@@ -10,6 +11,7 @@
 #include <string>
 
 #include "exodaq/messages/message.hpp"
+#include "exodaq/messages/run_mix.hpp"
 
 namespace lcm {
 class LCM;
@@ -54,6 +56,14 @@ class Subscriber {
 
   std::int64_t undecodable() const { return undecodable_; }
 
+  // Called once per prefix when two run ids interleave on it (RunMixDetector
+  // over every decoded message on an exodaq channel). Messages are still
+  // passed on; the caller says so loudly.
+  void on_mixed_runs(std::function<void(const RunMix&)> handler) {
+    mix_handler_ = std::move(handler);
+  }
+  bool mixed_runs() const noexcept { return runs_.mixed(); }
+
  private:
   struct Sub;
   static void on_raw(const lcm::ReceiveBuffer* rbuf, const std::string& channel, Sub* sub);
@@ -61,6 +71,8 @@ class Subscriber {
   std::unique_ptr<lcm::LCM> lcm_;
   std::list<Sub> subs_;
   std::int64_t undecodable_ = 0;
+  RunMixDetector runs_;
+  std::function<void(const RunMix&)> mix_handler_;
 };
 
 }  // namespace exodaq::msg

@@ -21,7 +21,7 @@ from .homing_t import homing_t
 from .joint_state_t import joint_state_t
 from .names import (BASE_CHANNELS, KINDS, Kind, bus_state_name, channel_name, homing_name,
                     invalid_reason_names, joint_flag_names, kind, kind_of_payload, parse_kind,
-                    sample_flag_names, split_channel, state_name)
+                    run_id_text, sample_flag_names, split_channel, state_name)
 from .palm_pose_t import palm_pose_t
 from .status_t import status_t
 from .udpm import DEFAULT_URL, Receiver, parse_url

@@ -75,6 +75,10 @@ class Subscriber:
                    when run_id changes (the daemon restarted)
       undecodable  messages on these channels that did not decode (last_error says why)
       and the transport's: receiver.bad_packets, receiver.dropped_fragmented
+    mixed_runs: None, or (run_id, other_run_id) once two runs interleave on these
+      channels (two daemons publish on one channel set: a run id comes back after
+      another one; a restart, one run after the other, is not a mix). Said once
+      on stderr; messages of both are still returned: filter by msg.run_id.
     """
 
     def __init__(self, url=DEFAULT_URL, prefix="", kinds=DEFAULT_KINDS, recv_buf_size=None):
@@ -87,6 +91,9 @@ class Subscriber:
         self.undecodable = 0
         self.last_error = None
         self._last = {}  # kind name -> (run_id, seq)
+        self.mixed_runs = None
+        self._run = 0
+        self._runs_seen = set()
 
     def close(self):
         self.receiver.close()
@@ -114,6 +121,21 @@ class Subscriber:
         if last is None or last[0] != msg.run_id or msg.seq > last[1]:
             self._last[k.name] = (msg.run_id, msg.seq)
 
+    def _watch_runs(self, msg):
+        rid = msg.run_id
+        if rid == 0 or rid == self._run:  # 0: the daemon's start-up messages
+            return
+        previous, self._run = self._run, rid
+        if rid not in self._runs_seen:
+            self._runs_seen.add(rid)
+            return
+        if self.mixed_runs is None:
+            self.mixed_runs = (rid, previous)
+            print("exodaq: WARNING: two runs interleaved on prefix %r: run ids %s and %s (two "
+                  "daemons publish on one channel set; filter by run_id)"
+                  % (self.prefix, names.run_id_text(rid), names.run_id_text(previous)),
+                  file=sys.stderr)
+
     def recv(self, timeout=None):
         """The next Message; None after `timeout` s (None: wait for ever)."""
         while True:
@@ -131,6 +153,7 @@ class Subscriber:
                 self.last_error = str(e)
                 continue  # counted; the caller sees it in undecodable
             self._count(k, msg)
+            self._watch_runs(msg)
             return Message(channel, k.name, msg)
 
     def messages(self, count=None, timeout=None):

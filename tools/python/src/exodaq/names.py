@@ -134,3 +134,8 @@ def bus_state_name(bus):
 def homing_name(homing):
     """status_t.homing[i]: "UNHOMED", "HOMED", "REJECTED"; "?" for another value."""
     return HOMING_STATES.get(homing, "?")
+
+
+def run_id_text(run_id):
+    """A run id as every exodaq tool spells it: 16 lower-case hex digits."""
+    return "%016x" % (run_id & 0xFFFFFFFFFFFFFFFF)

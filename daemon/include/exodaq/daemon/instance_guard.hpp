@@ -1,0 +1,144 @@
+#pragma once
+// One publisher per channel set (an LCM URL and a channel prefix;
+// docs/operations.md, "Several daemons"):
+// - InstanceLock: an flock on <runtime dir>/exodaqd-<hash of URL and
+//   prefix>.lock, held for the life of the process (the kernel releases it when
+//   the process dies, however it dies). The file names the holder: pid, run id,
+//   config. A second daemon on the same host fails to take it and is refused.
+// - ForeignRunListener: a daemon on another host shares the multicast group
+//   but not the lock, so the own status channel is listened to: for a short
+//   window before start (anything heard is another publisher), then on its own
+//   thread while running (another run id: the acquisition is told through one
+//   atomic, an error is logged once per episode, and a recovery when it is no
+//   longer heard).
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+
+namespace exodaq::msg {
+class Subscriber;
+}
+namespace exodaq::core {
+class Acquisition;
+}
+namespace exodaq::config {
+struct ServiceConfig;
+}
+
+namespace exodaq::daemon {
+
+// Another daemon publishes on this channel set; what() names it.
+class InstanceConflict : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Where lock files go: $RUNTIME_DIRECTORY (systemd's RuntimeDirectory=, the
+// first of a colon-separated list), /run/exodaq if writable,
+// $XDG_RUNTIME_DIR, then /tmp.
+std::string runtime_directory();
+
+// <dir>/exodaqd-<16 hex digits of FNV-1a 64 over "url\nprefix">.lock
+std::string lock_path(const std::string& dir, const std::string& url, const std::string& prefix);
+
+class InstanceLock {
+ public:
+  struct Identity {
+    std::string url;
+    std::string prefix;
+    std::string config_path;
+    std::string rig;
+  };
+  // Takes the lock at `path` (created if needed) and writes the holder's
+  // identity (run id still unknown). Throws InstanceConflict naming the holder
+  // (pid, run id, config) when another process holds it, std::runtime_error
+  // when the file cannot be opened.
+  InstanceLock(const std::string& path, Identity who);
+  ~InstanceLock();  // closes the file: the lock is released (the file stays)
+  InstanceLock(const InstanceLock&) = delete;
+  InstanceLock& operator=(const InstanceLock&) = delete;
+
+  // Rewrites the file with the run id once it is known.
+  void record_run_id(std::int64_t run_id);
+  const std::string& path() const noexcept { return path_; }
+
+ private:
+  void write_contents(const std::string& run_id_text);
+
+  std::string path_;
+  Identity who_;
+  int fd_ = -1;
+  bool writable_ = true;
+};
+
+// Listens on <prefix>EXO_STATUS.
+class ForeignRunListener {
+ public:
+  struct Heard {
+    std::int64_t run_id = 0;
+    std::string rig;
+  };
+  // A run id not heard for this long ends an episode (10 status periods at 10 Hz).
+  static constexpr std::int64_t kEpisodeEndNs = 1'000'000'000;
+
+  // Throws std::runtime_error if LCM cannot be set up on `url`.
+  ForeignRunListener(const std::string& url, const std::string& prefix);
+  ~ForeignRunListener();  // stops the watch thread
+  ForeignRunListener(const ForeignRunListener&) = delete;
+  ForeignRunListener& operator=(const ForeignRunListener&) = delete;
+
+  // Before this daemon publishes anything: listens for `window_ms`; the first
+  // status with a run id heard is another publisher's.
+  std::optional<Heard> listen_before_start(int window_ms);
+
+  // While running: a thread handles the channel; a status with a run id other
+  // than acq.run_id() sets acq.set_foreign_run_id() until none was heard for
+  // kEpisodeEndNs. `acq` must outlive this listener (or its stop()).
+  void watch(core::Acquisition& acq);
+  void stop() noexcept;
+
+ private:
+  void on_status(std::int64_t run_id, const std::string& rig);
+  void watch_loop() noexcept;
+  void end_episode_if_quiet();
+
+  std::string channel_;
+  std::unique_ptr<msg::Subscriber> sub_;
+  core::Acquisition* acq_ = nullptr;  // null before watch(): start-up window
+  std::optional<Heard> first_heard_;
+  std::int64_t episode_run_id_ = 0;  // 0: no episode
+  std::int64_t last_foreign_ns_ = 0;
+  std::int64_t episodes_ = 0;
+  std::atomic<bool> stopping_{false};
+  std::thread thread_;
+};
+
+// The start-up listening window: two status periods of `status_rate_hz`, at
+// least 250 ms.
+int startup_listen_ms(double status_rate_hz);
+
+// The lock and the listener as the daemon uses them.
+class ChannelClaim {
+ public:
+  // Takes the lock, then listens for startup_listen_ms(). Throws
+  // InstanceConflict naming the other publisher (lock holder, or a run id
+  // heard), std::runtime_error when the lock or LCM cannot be set up.
+  ChannelClaim(const config::ServiceConfig& config, const std::string& config_path);
+  // Before acq.start(): the lock file names the run id; the listener watches.
+  void attach(core::Acquisition& acq);
+  // Before the acquisition goes away (and before logging shuts down).
+  void detach() noexcept { listener_.stop(); }
+  const std::string& lock_file() const noexcept { return lock_.path(); }
+  int listened_ms() const noexcept { return listened_ms_; }
+
+ private:
+  InstanceLock lock_;
+  ForeignRunListener listener_;
+  int listened_ms_ = 0;
+};
+
+}  // namespace exodaq::daemon
