@@ -15,6 +15,8 @@
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/messages/lcm_log.hpp"
+#include "exodaq/messages/message.hpp"
+#include "sample_messages.hpp"
 
 namespace fs = std::filesystem;
 
@@ -24,24 +26,12 @@ using Buf = std::vector<std::uint8_t>;
 using Events = std::vector<std::pair<std::string, Buf>>;
 
 exodaq::encoder_raw_t raw(std::int64_t seq, std::int64_t run_id = 0x5eed) {
-  exodaq::encoder_raw_t m{};
-  m.utime = 1'700'000'000'000'000 + seq * 1000;
-  m.mono_ns = 5'000'000'000 + seq * 1'000'000;
-  m.seq = seq;
-  m.run_id = run_id;
-  m.present = 1;
-  m.board_seq = static_cast<std::int16_t>(seq & 0xFF);
-  for (int c = 0; c < 6; ++c) m.count16[c] = static_cast<std::int16_t>(100 * c + seq);
-  m.board_state = 1;
-  m.wall_ns = m.utime * 1000;
-  return m;
+  return exodaq::test::raw_message(seq, run_id);
 }
 
 template <typename T>
 Buf encoded(const T& m) {
-  Buf b(static_cast<std::size_t>(m.getEncodedSize()));
-  m.encode(b.data(), 0, static_cast<int>(b.size()));
-  return b;
+  return exodaq::msg::encode(m);
 }
 
 exodaq::joint_state_t joint_state(std::int64_t seq) {

@@ -73,7 +73,8 @@ class ReplayLive : public ::testing::Test {
     live->config = write_sim_config(live->dir, live->prefix);
     live->log = live->dir + "/live.lcm";
     {
-      Process logger(lcm_logger_argv(std::string(kUrl) + "&recv_buf_size=4194304", live->prefix + ".*", live->log),
+      Process logger(lcm_logger_argv(std::string(kUrl) + "&recv_buf_size=4194304",
+                                     live->prefix + ".*", live->log),
                      live->dir + "/logger.out", live->dir + "/logger.err");
       ASSERT_TRUE(wait_for_file(live->log, std::chrono::seconds(5))) << "lcm-logger did not start";
       std::this_thread::sleep_for(std::chrono::milliseconds(300));

@@ -7,6 +7,7 @@
 #include <string>
 #include <string_view>
 #include <variant>
+#include <vector>
 
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
@@ -35,6 +36,15 @@ bool decode_into(T& msg, const void* data, std::size_t size) noexcept {
   } catch (...) {
     return false;
   }
+}
+
+// One message's encoded bytes (tools and tests; the loop encodes into its
+// pre-allocated slots instead).
+template <typename T>
+std::vector<std::uint8_t> encode(const T& msg) {
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(msg.getEncodedSize()));
+  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
 }
 
 // Common header of every message.
