@@ -374,8 +374,7 @@ EXODAQ_REGISTER_COMMAND(
       app.add_option("--recorded-calibration", o->recorded_calibration,
                      "the calibration the recorded joint angles were computed with (export CSV, "
                      "LCM joint states; default: the config's)");
-      app.add_option("--prefix", o->prefix,
-                     "LCM log: the rig's channel prefix (default: the only one in the log)");
+      add_prefix_option(app, o->prefix, "LCM log; default: the only one in the log");
       app.add_option("--model", o->model, "kinematic model file (default: macaque_exo.yaml)");
       app.add_option("--validate", o->validate,
                      "cross-validation sets: MOCAP.csv (same encoder log) or ENC.csv,MOCAP.csv");

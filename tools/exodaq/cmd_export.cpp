@@ -214,8 +214,7 @@ std::function<int()> setup_export(CLI::App& sub) {
   sub.add_option("log", o->log, "LCM log (lcm-logger or exodaq replay)")->required();
   sub.add_option("-o,--out", o->out, "CSV file to write, - for standard output (default)")
       ->capture_default_str();
-  auto* prefix =
-      sub.add_option("--prefix", o->prefix, "channel prefix (default: the only one in the log)");
+  auto* prefix = add_prefix_option(sub, o->prefix, "default: the only one in the log");
   return [o, prefix] { return run_export(*o, prefix->count() > 0); };
 }
 

@@ -149,8 +149,7 @@ std::function<int()> setup_plot(CLI::App& sub) {
                  "singularity threshold go into the figures");
   sub.add_option("--calibration", o->calibration,
                  "the calibration the log was computed with (default: the config's)");
-  auto* prefix =
-      sub.add_option("--prefix", o->prefix, "channel prefix (default: the only one in the log)");
+  auto* prefix = add_prefix_option(sub, o->prefix, "default: the only one in the log");
   sub.add_option("--script", o->script,
                  "plot script (default: share/exodaq/plot/exodaq_plot.py beside the tool)");
   sub.add_option("--python", o->python,

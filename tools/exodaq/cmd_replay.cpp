@@ -424,9 +424,9 @@ std::function<int()> setup_replay(CLI::App& sub) {
                  "LCM input: the encoder_raw_t channel (default: the one ending in "
                  "EXO_ENCODER_RAW)");
   auto* prefix =
-      sub.add_option("--prefix", o->prefix,
-                     "channel prefix of the output (default: the recording's for LCM input, the "
-                     "config's lcm.prefix for candump)");
+      add_prefix_option(sub, o->prefix,
+                        "of the output; default: the recording's for LCM input, the config's "
+                        "for candump");
   return [o, prefix] {
     o->prefix_given = prefix->count() > 0;
     return run_replay(*o);
