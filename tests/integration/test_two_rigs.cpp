@@ -11,6 +11,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <regex>
@@ -78,12 +79,12 @@ TEST(TwoRigs, EachRigsMessagesOnlyOnItsOwnChannelsAndToolsSelectByPrefix) {
   std::this_thread::sleep_for(2500ms);  // joint 1 homes at ~0.95 s
 
   // The tools select a rig by prefix, and name it.
-  const auto status_a = test::run({EXODAQ_TOOL, "status", "--prefix", a.prefix, "--url",
-                                   test::kLcmUrl, "--timeout", "10"});
-  const auto status_b = test::run({EXODAQ_TOOL, "status", "-p", b.prefix, "--url", test::kLcmUrl,
-                                   "--timeout", "10", "--json"});
-  const auto status_none = test::run({EXODAQ_TOOL, "status", "-p", common + "none_", "--url",
-                                      test::kLcmUrl, "--timeout", "1"});
+  const auto status_a = test::run(
+      {EXODAQ_TOOL, "status", "--prefix", a.prefix, "--url", test::kLcmUrl, "--timeout", "10"});
+  const auto status_b = test::run(
+      {EXODAQ_TOOL, "status", "-p", b.prefix, "--url", test::kLcmUrl, "--timeout", "10", "--json"});
+  const auto status_none = test::run(
+      {EXODAQ_TOOL, "status", "-p", common + "none_", "--url", test::kLcmUrl, "--timeout", "1"});
   const auto bad_prefix = test::run({EXODAQ_TOOL, "status", "-p", "rig b"});
 
   da.signal(SIGTERM);
@@ -164,8 +165,7 @@ TEST(TwoRigs, EachRigsMessagesOnlyOnItsOwnChannelsAndToolsSelectByPrefix) {
       for (int j = 0; j < 6; ++j) {
         if (!js->homed[j]) continue;
         ASSERT_LE(std::fabs(js->position[j] - q[j]), count + 1e-9)
-            << m.channel << " seq " << js->seq << " joint " << j + 1
-            << ": not its own rig's angle";
+            << m.channel << " seq " << js->seq << " joint " << j + 1 << ": not its own rig's angle";
         ++homed_checked;
         if (std::fabs(q[j] - q_other[j]) > 10 * count) ++truths_differ;
       }
@@ -183,6 +183,12 @@ TEST(TwoRigs, EachRigsMessagesOnlyOnItsOwnChannelsAndToolsSelectByPrefix) {
     // Not a rate check: enough cycles to have homed (both daemons ran 2.5 s).
     EXPECT_GT(h.count.at(msg::Kind::kJointState), 200);
   }
+  std::printf(
+      "two rigs: %lld + %lld joint states, %lld homed angles checked against their own "
+      "truth, %lld of them differing from the other rig's truth\n",
+      static_cast<long long>(heard[a.prefix].count[msg::Kind::kJointState]),
+      static_cast<long long>(heard[b.prefix].count[msg::Kind::kJointState]),
+      static_cast<long long>(homed_checked), static_cast<long long>(truths_differ));
   EXPECT_NE(*heard[a.prefix].run_ids.begin(), *heard[b.prefix].run_ids.begin());
   EXPECT_GT(homed_checked, 0);
   // The two rigs move differently (seeds 1 and 7), so the truth check above

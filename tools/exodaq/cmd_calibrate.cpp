@@ -1,6 +1,6 @@
 // exodaq calibrate: offline kinematic calibration (seed 000 §4, issues 8 and 18).
 //   exodaq calibrate --encoders ENC --markers MOCAP.csv --bounds B.yaml -o cal.yaml
-//                    [-c CONFIG] [--recorded-calibration FILE] [--prefix P]
+//                    [-c CONFIG] [--recorded-calibration FILE] [-p PREFIX]
 //                    [--model M] [--marker-layout L.yaml | --marker-id N]
 //                    [--validate [ENC,]MOCAP.csv ...] [--robust huber|cauchy]
 //                    [--estimate-time-offset] [--plot out.png] [--max-points N]

@@ -1,6 +1,6 @@
 // exodaq export: an LCM log (lcm-logger or exodaq replay) to CSV, one row per
 // cycle: the joint_state_t of that seq joined with its palm_pose_t.
-//   exodaq export LOG [-o OUT.csv|-] [--prefix P]
+//   exodaq export LOG [-o OUT.csv|-] [-p PREFIX]
 // The columns are the CSV schema of docs/messages.md (exodaq/messages/csv.hpp);
 // values are exact. The daemon's all-zero start-up messages are left out. A
 // cycle whose palm_pose_t is missing from the log keeps empty palm columns.

@@ -1,6 +1,6 @@
 // exodaq plot: figures of a recording in the spirit of seed 000 Figs. 16-18,
 // drawn by matplotlib (tools/plot/exodaq_plot.py) from the CSV export.
-//   exodaq plot LOG -o DIR [-c CONFIG] [--calibration FILE] [--prefix P]
+//   exodaq plot LOG -o DIR [-c CONFIG] [--calibration FILE] [-p PREFIX]
 //               [--script FILE] [--python EXE]
 // Writes DIR/cycles.csv (the export) and DIR/joint_trajectories.png,
 // DIR/palm_path_3d.png, DIR/shoulder_manipulability.png. Everything is made

@@ -3,7 +3,7 @@
 // and write the results as an LCM log (docs/replay.md).
 //   exodaq replay IN -c C -o OUT.lcm [--speed 0.5|1|4|max]
 //                 [--format auto|lcm|candump] [--calibration FILE]
-//                 [--channel NAME] [--prefix P] [-q] [-v]
+//                 [--channel NAME] [-p PREFIX] [-q] [-v]
 // The output is written as a files::OutputFile (through msg::LogWriter): it
 // appears complete or not at all, and never replaces an input.
 //
