@@ -76,7 +76,7 @@ TEST(TwoRigs, EachRigsMessagesOnlyOnItsOwnChannelsAndToolsSelectByPrefix) {
   std::this_thread::sleep_for(300ms);
   test::Process da({EXODAQD, "--config", a.config}, a.dir + "/d.out", a.dir + "/d.err");
   test::Process db({EXODAQD, "--config", b.config}, b.dir + "/d.out", b.dir + "/d.err");
-  std::this_thread::sleep_for(2500ms);  // joint 1 homes at ~0.95 s
+  std::this_thread::sleep_for(3500ms);  // joint 1 homes at ~0.95 s: room for a loaded machine
 
   // The tools select a rig by prefix, and name it.
   const auto status_a = test::run(
@@ -180,7 +180,7 @@ TEST(TwoRigs, EachRigsMessagesOnlyOnItsOwnChannelsAndToolsSelectByPrefix) {
     EXPECT_EQ(h.status_rigs,
               (std::set<std::string>{prefix == a.prefix ? std::string("rig-a") : "rig-b"}));
     for (const auto k : msg::kAllKinds) EXPECT_GT(h.count.count(k), 0U);  // all four published
-    // Not a rate check: enough cycles to have homed (both daemons ran 2.5 s).
+    // Not a rate check: enough cycles to have homed (both daemons ran 3.5 s).
     EXPECT_GT(h.count.at(msg::Kind::kJointState), 200);
   }
   std::printf(
