@@ -5,7 +5,8 @@
 #   /usr/share/exodaq/lcmtypes/                                  (lcmtypes/: .lcm, jar)
 #   /usr/lib/python3/dist-packages/exodaq/, exodaq_lcm.py         (tools/python: the Python package)
 #   /etc/exodaq/exodaqd.yaml, sim.yaml, vcan.yaml, models/, calibration/, tasks/   (conffiles)
-#   /lib/systemd/system/exodaqd.service
+#   /lib/systemd/system/exodaqd.service, exodaqd@.service (the template: one
+#     instance per rig, exodaqd@<rig>.service reading /etc/exodaq/<rig>.yaml)
 #   /usr/lib/sysusers.d/exodaq.conf
 #   /usr/share/doc/exodaq/  operations.md, messages.md, ..., examples/80-can0.{network,link}
 # Any other prefix P (a staging directory, /usr/local) keeps everything under P:
@@ -54,17 +55,32 @@ else()
   set(_exodaq_unitdir "${CMAKE_INSTALL_PREFIX}/lib/systemd/system")
   set(_exodaq_sysusersdir "${CMAKE_INSTALL_PREFIX}/lib/sysusers.d")
 endif()
-# The unit as written in systemd/, with its paths moved to this prefix.
+# The unit as written in systemd/, and the per-rig template made from it (one
+# home for the unit's settings): the same unit but for its config,
+# /etc/exodaq/%i.yaml, and its description; then both with their paths moved
+# to this prefix.
 file(READ "${_exodaq_unit_in}" _exodaq_unit)
-string(REPLACE "/usr/bin/exodaqd" "${CMAKE_INSTALL_PREFIX}/${_exodaq_bindir}/exodaqd"
-  _exodaq_unit "${_exodaq_unit}")
-string(REPLACE "/etc/exodaq/" "${_exodaq_etc}/" _exodaq_unit "${_exodaq_unit}")
+string(REPLACE "/etc/exodaq/exodaqd.yaml" "/etc/exodaq/%i.yaml" _exodaq_template "${_exodaq_unit}")
+string(REPLACE "Description=exodaq encoder acquisition service ("
+  "Description=exodaq encoder acquisition service, rig %i (" _exodaq_template "${_exodaq_template}")
+string(REGEX REPLACE "^# exodaqd: [^\n]*\n" "# exodaqd@<rig>.service: exodaqd for one of several rigs on this host, with
+# /etc/exodaq/<rig>.yaml (its own lcm.prefix, rig name and CAN board; docs/operations.md
+# \"Several rigs\"). Made at install from systemd/exodaqd.service (cmake/Packaging.cmake).
+" _exodaq_template "${_exodaq_template}")
 # One generated copy per destination: installs into several stages may run at once.
 string(MD5 _exodaq_key "$ENV{DESTDIR}|${CMAKE_INSTALL_PREFIX}")
 file(MAKE_DIRECTORY "${_exodaq_gen}/${_exodaq_key}")
-file(WRITE "${_exodaq_gen}/${_exodaq_key}/exodaqd.service" "${_exodaq_unit}")
-file(INSTALL DESTINATION "${_exodaq_unitdir}" TYPE FILE PERMISSIONS OWNER_READ OWNER_WRITE
-  GROUP_READ WORLD_READ FILES "${_exodaq_gen}/${_exodaq_key}/exodaqd.service")
+foreach(_exodaq_pair "exodaqd.service;_exodaq_unit" "exodaqd@.service;_exodaq_template")
+  list(GET _exodaq_pair 0 _exodaq_name)
+  list(GET _exodaq_pair 1 _exodaq_var)
+  set(_exodaq_text "${${_exodaq_var}}")
+  string(REPLACE "/usr/bin/exodaqd" "${CMAKE_INSTALL_PREFIX}/${_exodaq_bindir}/exodaqd"
+    _exodaq_text "${_exodaq_text}")
+  string(REPLACE "/etc/exodaq/" "${_exodaq_etc}/" _exodaq_text "${_exodaq_text}")
+  file(WRITE "${_exodaq_gen}/${_exodaq_key}/${_exodaq_name}" "${_exodaq_text}")
+  file(INSTALL DESTINATION "${_exodaq_unitdir}" TYPE FILE PERMISSIONS OWNER_READ OWNER_WRITE
+    GROUP_READ WORLD_READ FILES "${_exodaq_gen}/${_exodaq_key}/${_exodaq_name}")
+endforeach()
 file(INSTALL DESTINATION "${_exodaq_sysusersdir}" TYPE FILE RENAME exodaq.conf
   PERMISSIONS OWNER_READ OWNER_WRITE GROUP_READ WORLD_READ FILES "${_exodaq_sysusers}")
 # Configuration: readable by the exodaq user, writable by root only.

@@ -89,8 +89,12 @@ int syslog_priority(spdlog::level::level_enum level) {
 
 // The native journal protocol, with the fields carried in the payload
 // (EXODAQ_STATE, EXODAQ_JOINT, EXODAQ_EVENT, EXODAQ_SEQ, EXODAQ_RUN_ID ...), so
-// `journalctl -u exodaqd EXODAQ_JOINT=elbow` finds one joint's events.
+// `journalctl -u exodaqd EXODAQ_JOINT=elbow` finds one joint's events. Every
+// entry names the rig (EXODAQ_RIG: `journalctl EXODAQ_RIG=rig-b`).
 class JournalFieldSink final : public spdlog::sinks::base_sink<std::mutex> {
+ public:
+  explicit JournalFieldSink(const std::string& rig) : rig_field_("EXODAQ_RIG=" + rig) {}
+
  protected:
   void sink_it_(const spdlog::details::log_msg& msg) override {
     const std::string_view payload(msg.payload.data(), msg.payload.size());
@@ -99,6 +103,7 @@ class JournalFieldSink final : public spdlog::sinks::base_sink<std::mutex> {
     items.push_back("MESSAGE=" + std::string(payload.substr(0, cut)));
     items.push_back("PRIORITY=" + std::to_string(syslog_priority(msg.level)));
     items.emplace_back("SYSLOG_IDENTIFIER=exodaqd");
+    items.push_back(rig_field_);
     while (cut != std::string_view::npos) {
       const std::size_t next = payload.find(kFieldSep, cut + 1);
       const auto field = payload.substr(
@@ -118,6 +123,9 @@ class JournalFieldSink final : public spdlog::sinks::base_sink<std::mutex> {
     }
   }
   void flush_() override {}
+
+ private:
+  std::string rig_field_;
 };
 
 // stderr, without the structured fields.
@@ -148,17 +156,21 @@ struct Logging {
 
 // spdlog, asynchronous: the loop thread never logs, and the main thread's
 // logging never waits on the journal or a terminal. Level: the config, then
-// SPDLOG_LEVEL, then --log-level.
-Logging make_logger(const LoggingSettings& settings, const std::string& level_override) {
+// SPDLOG_LEVEL, then --log-level. Every line names the rig (several daemons
+// may share a host and a terminal).
+Logging make_logger(const LoggingSettings& settings, const std::string& level_override,
+                    const std::string& rig) {
   spdlog::init_thread_pool(8192, 1);
   Logging out;
   out.journal = settings.sink == "journal" || (settings.sink == "auto" && stderr_is_journal());
   spdlog::sink_ptr sink;
   if (out.journal) {
-    sink = std::make_shared<JournalFieldSink>();
+    sink = std::make_shared<JournalFieldSink>(rig);
   } else {
     auto err = std::make_shared<StderrSink>();
-    err->set_inner_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+    std::string rig_text;  // literal in the pattern: '%' doubled
+    for (const char c : rig) rig_text += c == '%' ? std::string("%%") : std::string(1, c);
+    err->set_inner_pattern("%Y-%m-%d %H:%M:%S.%e [" + rig_text + "] %^%l%$ %v");
     sink = err;
   }
   out.logger = std::make_shared<spdlog::async_logger>(
@@ -739,7 +751,7 @@ int run_daemon(const DaemonOptions& options) {
   const sigset_t signals = daemon_signals();
   ServiceConfig config;
   if (const auto exit_code = load_config(options, config)) return *exit_code;
-  const Logging logging = make_logger(config.logging, options.log_level);
+  const Logging logging = make_logger(config.logging, options.log_level, config.rig);
   const std::int64_t started_ns = mono_now_ns();
   const std::unique_ptr<ChannelClaim> claim = claim_channels(config, options, logging);
   if (!claim) return 1;

@@ -4,7 +4,9 @@
 // time as the "kernel" receive timestamp) once the port's clock reaches it.
 // wait_readable() advances the clock to the next arrival or to the deadline,
 // so a test runs the SocketCAN backend's real read() deterministically and
-// instantly. Interface loss, send errors and kernel drops are switches.
+// instantly. Interface loss, send errors and kernel drops are switches;
+// `admit` stands for the kernel's CAN_RAW_FILTER (a frame it refuses is never
+// queued), so several ports can share one simulated bus (test_two_boards.cpp).
 // Allocation-free after construction (fixed ring, reserved send log).
 #include <array>
 #include <cerrno>
@@ -35,12 +37,20 @@ class MemoryCanPort final : public drivers::CanPort {
   std::vector<Frame> sent;
   // Called for each frame sent (e.g. a board answering SYNC).
   std::function<void(const Frame&, MemoryCanPort&)> on_send;
+  // The socket's receive filter: frames it refuses are not queued (empty: all
+  // are), counted in `filtered`.
+  std::function<bool(const Frame&)> admit;
+  std::int64_t filtered = 0;
 
   void advance_to(std::int64_t t) noexcept {
     if (t > mono) mono = t;
   }
   // Schedules a frame to arrive at `arrival_mono`.
   void push(const Frame& f, std::int64_t arrival_mono) noexcept {
+    if (admit && !admit(f)) {
+      ++filtered;
+      return;
+    }
     Slot& s = ring_[static_cast<std::size_t>((head_ + size_) % kRing)];
     s.frame = f;
     s.arrival = arrival_mono;

@@ -107,6 +107,37 @@ TEST(SocketCanPort, FiltersErrorFramesAndKernelTimestamps) {
   EXPECT_EQ(info.unstamped, 0);
 }
 
+// Two boards on one bus (docs/can-protocol.md, "Several boards on one bus"):
+// the ports of rig A (board 0, sync master) and rig B (board 1, following
+// the SYNC) each receive their own board's frames only; B also the SYNC.
+TEST(SocketCanPort, TwoBoardsOneBusEachPortHearsItsOwnBoard) {
+  REQUIRE_VCAN();
+  CanPortConfig ca = config();
+  CanPortConfig cb = config();
+  cb.ids.board = 1;
+  cb.receive_sync = true;
+  auto a = make_socketcan_port(ca);
+  auto b = make_socketcan_port(cb);
+  ASSERT_EQ(a->open(), 0);
+  ASSERT_EQ(b->open(), 0);
+  Peer peer;
+  peer.send(0x080, 0);  // SYNC
+  for (canid_t base : {0x181U, 0x182U, 0x190U, 0x195U, 0x701U}) {
+    peer.send(base, base == 0x701U ? 4 : (base >= 0x190U ? 3 : 8));         // board 0
+    peer.send(base + 0x20, base == 0x701U ? 4 : (base >= 0x190U ? 3 : 8));  // board 1
+  }
+  const auto ids_of = [](CanPort& port) {
+    std::vector<can::CanFrame> got;
+    CanRxInfo info;
+    EXPECT_EQ(receive_all(port, got, info), 0);
+    std::set<std::uint32_t> ids;
+    for (const auto& f : got) ids.insert(f.id);
+    return ids;
+  };
+  EXPECT_EQ(ids_of(*a), (std::set<std::uint32_t>{0x181, 0x182, 0x190, 0x195, 0x701}));
+  EXPECT_EQ(ids_of(*b), (std::set<std::uint32_t>{0x080, 0x1A1, 0x1A2, 0x1B0, 0x1B5, 0x721}));
+}
+
 TEST(SocketCanPort, SendsSync) {
   REQUIRE_VCAN();
   auto port = make_socketcan_port(config());

@@ -48,7 +48,8 @@ grep -q "^Inst exodaq " "$work/apt.log" || { cat "$work/apt.log" >&2; fail "apt-
 dpkg-deb -c "$deb" | awk '{print $6}' >"$work/files"
 for f in ./usr/bin/exodaqd ./usr/bin/exodaq ./etc/exodaq/exodaqd.yaml \
   ./etc/exodaq/models/macaque_exo.yaml ./etc/exodaq/calibration/nominal.yaml \
-  ./lib/systemd/system/exodaqd.service ./usr/lib/sysusers.d/exodaq.conf \
+  ./lib/systemd/system/exodaqd.service ./lib/systemd/system/exodaqd@.service \
+  ./usr/lib/sysusers.d/exodaq.conf \
   ./usr/share/exodaq/lcmtypes/exodaq/joint_state_t.lcm ./usr/share/doc/exodaq/operations.md \
   ./usr/share/doc/exodaq/examples/80-can0.network; do
   grep -qx "$f" "$work/files" || fail "package lacks $f"
@@ -121,6 +122,14 @@ sed -e "s#/usr/bin/exodaqd#$root/usr/bin/exodaqd#g" -e "s#/etc/exodaq/#$root/etc
 out=$(cd "$work" && systemd-analyze verify "$work/exodaqd.service" 2>&1) ||
   fail "verify of the packaged unit: $out"
 [ -z "$out" ] || fail "verify of the packaged unit printed: $out"
+# The per-rig template (tests/systemd/check_unit.sh checks it in detail).
+grep -qx "ExecStart=/usr/bin/exodaqd --config /etc/exodaq/%i.yaml" \
+  "$root/lib/systemd/system/exodaqd@.service" || fail "packaged template's ExecStart"
+sed -e "s#/usr/bin/exodaqd#$root/usr/bin/exodaqd#g" -e "s#/etc/exodaq/#$root/etc/exodaq/#g" \
+  "$root/lib/systemd/system/exodaqd@.service" >"$work/exodaqd@.service"
+out=$(cd "$work" && systemd-analyze verify "$work/exodaqd@.service" 2>&1) ||
+  fail "verify of the packaged template: $out"
+[ -z "$out" ] || fail "verify of the packaged template printed: $out"
 
 if [ "$(id -u)" -eq 0 ]; then
   # 7. Upgrade (reinstall) keeps a locally edited config; remove keeps the

@@ -77,6 +77,48 @@ for sc in clock_adjtime sched_setscheduler sched_setaffinity; do
   grep -q "^SystemCallFilter=.*\b$sc\b" "$unit" || fail "SystemCallFilter drops $sc"
 done
 
+# 3b. The per-rig template exodaqd@.service (docs/operations.md "Several rigs"):
+#     the same unit but for its config, /etc/exodaq/%i.yaml, and description;
+#     an instance verifies clean and has the same exposure; a rig's config
+#     passes the instance's ExecStartPre check.
+tpl=$stage/lib/systemd/system/exodaqd@.service
+[ -f "$tpl" ] || fail "no template unit at $tpl"
+body() { sed -n '/^\[Unit\]/,$p' "$1"; }
+expected_tpl=$(sed -e "s#/etc/exodaq/exodaqd.yaml#/etc/exodaq/%i.yaml#g" \
+  -e "s#^Description=exodaq encoder acquisition service (#Description=exodaq encoder acquisition service, rig %i (#" \
+  "$src/systemd/exodaqd.service" | body /dev/stdin |
+  sed -e "s#/usr/bin/exodaqd#$stage/bin/exodaqd#g" -e "s#/etc/exodaq/#$stage/etc/exodaq/#g")
+[ "$expected_tpl" = "$(body "$tpl")" ] ||
+  fail "template differs from systemd/exodaqd.service beyond its config, description and paths"
+grep -q "^ExecStart=$stage/bin/exodaqd --config $stage/etc/exodaq/%i.yaml\$" "$tpl" ||
+  fail "template's ExecStart does not read /etc/exodaq/%i.yaml"
+grep -q "^Description=.*rig %i" "$tpl" || fail "template's description does not name the rig"
+cp "$tpl" "$stage/lib/systemd/system/exodaqd@rig-b.service"
+for u in "$tpl" "$stage/lib/systemd/system/exodaqd@rig-b.service"; do
+  out=$(systemd-analyze verify "$u" 2>&1) && rc=0 || rc=$?
+  echo "systemd-analyze verify $(basename "$u"): exit $rc, output: '${out}'"
+  [ "$rc" -eq 0 ] && [ -z "$out" ] || fail "verify $(basename "$u"): exit $rc: $out"
+done
+sed "s#$stage/bin/exodaqd#$stage/bin/missing-exodaqd#g" "$tpl" >"$stage/broken@.service"
+if systemd-analyze verify "$stage/broken@.service" >/dev/null 2>&1; then
+  fail "verify accepted a template whose binary is missing"
+fi
+rm -f "$stage/broken@.service"
+sec_b=$(systemd-analyze security --offline=true "$stage/lib/systemd/system/exodaqd@rig-b.service" 2>&1) || true
+score_b=$(printf '%s\n' "$sec_b" | sed -n 's/.*Overall exposure level for exodaqd@rig-b.service: \([0-9.]*\).*/\1/p')
+echo "systemd-analyze security --offline=true exodaqd@rig-b.service: exposure $score_b"
+[ "$score_b" = "$score" ] || fail "instance exposure '$score_b' differs from the unit's $score"
+# rig-b's config: the simulated rig under its own name and prefix; the
+# instance's ExecStartPre, %i expanded, accepts it.
+sed -e "s#model: models/#model: $src/config/models/#" \
+  -e "s#calibration: calibration/#calibration: $src/config/calibration/#" \
+  -e "s#task: tasks/#task: $src/config/tasks/#" -e 's/^rig: .*/rig: rig-b/' \
+  -e 's/prefix: ""/prefix: "RIGB_"/' "$src/config/sim.yaml" >"$stage/etc/exodaq/rig-b.yaml"
+pre=$(sed -n 's/^ExecStartPre=//p' "$tpl" | sed 's/%i/rig-b/g')
+# shellcheck disable=SC2086  # the unit's command line, split as systemd splits it
+check_out=$($pre) || fail "the instance's ExecStartPre on rig-b.yaml: $check_out"
+printf '%s\n' "$check_out" | grep -q "rig rig-b" || fail "check-config does not name rig-b: $check_out"
+
 # 4. The daemon's own system calls pass the unit's filter (a missing one would
 #    kill it with SIGSYS or fail with EPERM under systemd): the simulated rig
 #    with SCHED_FIFO and locked memory, traced for 2 s. Needs strace.

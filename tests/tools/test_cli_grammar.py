@@ -3,8 +3,10 @@
 point 4; docs/operations.md "Command line"), checked from what a user sees:
 
   grammar   every command's --help: -h/--help, -q/--quiet, -v/--verbose;
-            -c is --config, -o is --out, -q is --quiet, -v is --verbose (both
-            ways, on one option); --json never takes a value.
+            -c is --config, -o is --out, -p is --prefix (the rig's channel
+            prefix, tools/exodaq/command.hpp add_prefix_option), -q is --quiet,
+            -v is --verbose (both ways, on one option); --json never takes a
+            value.
   unknown   an unknown option is named (exit 2, one line "exodaq <command>:
             unknown option '...'"), with the closest valid one when there is
             one, even when a required option is missing too.
@@ -28,7 +30,7 @@ import re
 import subprocess
 import sys
 
-CANONICAL = {"-c": "--config", "-o": "--out", "-q": "--quiet", "-v": "--verbose"}
+CANONICAL = {"-c": "--config", "-o": "--out", "-p": "--prefix", "-q": "--quiet", "-v": "--verbose"}
 VALUE_TYPES = re.compile(r"^(TEXT|INT|UINT|FLOAT|NUMBER|FILE|DIR|PATH|[A-Z]+)(\b|:|$)")
 
 
@@ -111,7 +113,7 @@ def check_grammar(a):
             if "--json" in longs and takes_value:
                 fail("%s: --json takes a value" % label(key))
             checked += 1
-    print("grammar: %d options of %d commands follow -c/-o/-q/-v/--json" % (checked, len(all_helps(a))))
+    print("grammar: %d options of %d commands follow -c/-o/-p/-q/-v/--json" % (checked, len(all_helps(a))))
 
 
 def check_unknown(a):

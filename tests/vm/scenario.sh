@@ -10,7 +10,13 @@
 #     stream (seq, kernel timestamps, truth, flags, counters, recovery);
 #  3. the candump log and the checker's dump of the live cycles (joint_state +
 #     encoder_raw by seq) go to the host through the second serial port, for
-#     the host-side replay comparison (vm_vcan_replay); neither changes RC.
+#     the host-side replay comparison (vm_vcan_replay); neither changes RC;
+#  4. two rigs on one bus (issue 19 point 2; docs/can-protocol.md "Several
+#     boards on one bus"): two board simulators on vcan0, boards 0 and 1, and
+#     two daemons with their own configs (rig name, lcm.prefix RIGA_/RIGB_,
+#     board number; A sync master, B following A's SYNC), each checked by its
+#     own exodaq-vcan-check (--no-faults: a clean run, its own board's truth,
+#     kernel stamps of its own board's frames, on its own prefix's channels).
 set -u
 B=/exodaq/bin
 C=/exodaq/config
@@ -127,4 +133,56 @@ if [ -s $W/live.txt ]; then
 else
   echo "VM: no live cycle dump (vm_vcan_replay will fail)"
 fi
+
+# --- 4. two rigs, two boards, one bus ------------------------------------------
+step "two rigs on vcan0: boards 0 and 1"
+ip link set vcan0 up
+# Six busy processes instead of four: half the loop rate (every period derives from it).
+# Open (docs/can-protocol.md, VM step 4): rig B's checker has seen one sample in
+# ~800 with utime 2 us below its frame's kernel stamp (1 us allowed).
+RATE2=$((RATE / 2))
+sed -e "s/^  rate_hz: [0-9]* /  rate_hz: $RATE2 /" -e 's/^rig: .*/rig: vm-rig-a/' \
+  -e 's/^  prefix: ""/  prefix: "RIGA_"/' $CFG > $C/rig-a.yaml
+sed -e "s/^  rate_hz: [0-9]* /  rate_hz: $RATE2 /" -e 's/^rig: .*/rig: vm-rig-b/' -e 's/^  prefix: ""/  prefix: "RIGB_"/' \
+  -e 's/^    board: 0/    board: 1/' -e 's/^    sync_master: true /    sync_master: false/' \
+  -e 's/^    seed: 1/    seed: 7/' $CFG > $C/rig-b.yaml
+grep -q "rate_hz: $RATE2 " $C/rig-a.yaml && grep -q 'board: 1' $C/rig-b.yaml &&
+  grep -q 'sync_master: false' $C/rig-b.yaml &&
+  grep -q 'prefix: "RIGB_"' $C/rig-b.yaml || fail "cannot write rig-b.yaml"
+for r in a b; do
+  $B/exodaq-vcan-check --config $C/rig-$r.yaml --truth $W/truth-$r.txt \
+    --board-log $W/board-$r.log --no-faults > $W/check-$r.log 2>&1 &
+  eval CK_$r=$!
+  $B/exodaqd --config $C/rig-$r.yaml --log-level info > $W/daemon-$r.log 2>&1 &
+  eval DP_$r=$!
+done
+sleep 1
+for r in a b; do
+  $B/exodaq-board-sim --iface vcan0 --config $C/rig-$r.yaml --truth $W/truth-$r.txt \
+    2> $W/board-$r.log &
+  eval BS_$r=$!
+done
+# Until both boards have simulated 18 s (homed by ~11.5 s).
+lines() { (wc -l < "$1") 2>/dev/null || echo 0; }
+while [ "$(lines $W/truth-a.txt)" -lt $((18 * RATE2)) ] ||
+  [ "$(lines $W/truth-b.txt)" -lt $((18 * RATE2)) ]; do
+  kill -0 $DP_a 2>/dev/null || { fail "rig A's exodaqd died"; break; }
+  kill -0 $DP_b 2>/dev/null || { fail "rig B's exodaqd died"; break; }
+  sleep 0.5
+done
+step "two rigs: stopping"
+for r in a b; do
+  eval "kill -TERM \$BS_$r; wait \$BS_$r"
+done
+for r in a b; do
+  eval "kill -TERM \$CK_$r; wait \$CK_$r"
+  rc=$?
+  echo "--- rig $r: checker ---"; cat $W/check-$r.log
+  echo "--- rig $r: daemon (last 10 lines) ---"; tail -n 10 $W/daemon-$r.log
+  [ $rc -eq 0 ] || fail "rig $r: exodaq-vcan-check rc=$rc"
+  eval "kill -TERM \$DP_$r; wait \$DP_$r"
+  rc=$?
+  [ $rc -eq 0 ] || fail "rig $r: exodaqd exit code $rc after SIGTERM"
+  grep -q "\[vm-rig-$r\]" $W/daemon-$r.log || fail "rig $r: the daemon's log lines do not name it"
+done
 exit $RC

@@ -1,6 +1,6 @@
 // exodaq calibrate: offline kinematic calibration (seed 000 §4, issues 8 and 18).
 //   exodaq calibrate --encoders ENC --markers MOCAP.csv --bounds B.yaml -o cal.yaml
-//                    [-c CONFIG] [--recorded-calibration FILE] [--prefix P]
+//                    [-c CONFIG] [--recorded-calibration FILE] [-p PREFIX]
 //                    [--model M] [--marker-layout L.yaml | --marker-id N]
 //                    [--validate [ENC,]MOCAP.csv ...] [--robust huber|cauchy]
 //                    [--estimate-time-offset] [--plot out.png] [--max-points N]
@@ -374,8 +374,7 @@ EXODAQ_REGISTER_COMMAND(
       app.add_option("--recorded-calibration", o->recorded_calibration,
                      "the calibration the recorded joint angles were computed with (export CSV, "
                      "LCM joint states; default: the config's)");
-      app.add_option("--prefix", o->prefix,
-                     "LCM log: the rig's channel prefix (default: the only one in the log)");
+      add_prefix_option(app, o->prefix, "LCM log; default: the only one in the log");
       app.add_option("--model", o->model, "kinematic model file (default: macaque_exo.yaml)");
       app.add_option("--validate", o->validate,
                      "cross-validation sets: MOCAP.csv (same encoder log) or ENC.csv,MOCAP.csv");

@@ -84,8 +84,9 @@ class Table {
   void render(int64_t local_ns) {
     std::vector<std::string> lines;
     char buf[256];
-    std::snprintf(buf, sizeof buf, "exodaq echo  %s  prefix '%s'", opt_.url.c_str(),
-                  opt_.prefix.c_str());
+    // The rig's name comes with its status (10 Hz): until then, only the prefix.
+    std::snprintf(buf, sizeof buf, "exodaq echo  %s  prefix '%s'  rig %s", opt_.url.c_str(),
+                  opt_.prefix.c_str(), status_ ? ("'" + status_->rig + "'").c_str() : "?");
     lines.emplace_back(buf);
     if (!joint_) {
       lines.emplace_back("waiting for " + msg::channel_name(opt_.prefix, msg::Kind::kJointState) +
@@ -341,7 +342,7 @@ std::function<int()> setup_echo(CLI::App& app) {
                  "CSV to this file (written when echo ends), - for standard output")
       ->capture_default_str();
   app.add_flag("--csv", opt->csv, "CSV lines even on a terminal (the default when piped)");
-  app.add_option("--prefix,-p", opt->prefix, "channel prefix of the rig (config lcm.prefix)")
+  add_prefix_option(app, opt->prefix, "default: the config's, else none")
       ->each([opt](const std::string&) { opt->prefix_given = true; });
   app.add_option("--url,-u", opt->url, "LCM URL")
       ->capture_default_str()

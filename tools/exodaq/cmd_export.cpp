@@ -1,6 +1,6 @@
 // exodaq export: an LCM log (lcm-logger or exodaq replay) to CSV, one row per
 // cycle: the joint_state_t of that seq joined with its palm_pose_t.
-//   exodaq export LOG [-o OUT.csv|-] [--prefix P] [--run-id RUN]
+//   exodaq export LOG [-o OUT.csv|-] [-p PREFIX] [--run-id RUN]
 // The columns are the CSV schema of docs/messages.md (exodaq/messages/csv.hpp);
 // values are exact. The daemon's all-zero start-up messages are left out. A
 // cycle whose palm_pose_t is missing from the log keeps empty palm columns.
@@ -237,8 +237,7 @@ std::function<int()> setup_export(CLI::App& sub) {
   sub.add_option("log", o->log, "LCM log (lcm-logger or exodaq replay)")->required();
   sub.add_option("-o,--out", o->out, "CSV file to write, - for standard output (default)")
       ->capture_default_str();
-  auto* prefix =
-      sub.add_option("--prefix", o->prefix, "channel prefix (default: the only one in the log)");
+  auto* prefix = add_prefix_option(sub, o->prefix, "default: the only one in the log");
   sub.add_option("--run-id", o->run_id,
                  "export only this run (16 hex digits, as exodaq status prints it); needed when "
                  "two daemons' runs interleave in the log");

@@ -1,6 +1,6 @@
 // exodaq plot: figures of a recording in the spirit of seed 000 Figs. 16-18,
 // drawn by matplotlib (tools/plot/exodaq_plot.py) from the CSV export.
-//   exodaq plot LOG -o DIR [-c CONFIG] [--calibration FILE] [--prefix P]
+//   exodaq plot LOG -o DIR [-c CONFIG] [--calibration FILE] [-p PREFIX]
 //               [--script FILE] [--python EXE]
 // Writes DIR/cycles.csv (the export) and DIR/joint_trajectories.png,
 // DIR/palm_path_3d.png, DIR/shoulder_manipulability.png. Everything is made
@@ -149,8 +149,7 @@ std::function<int()> setup_plot(CLI::App& sub) {
                  "singularity threshold go into the figures");
   sub.add_option("--calibration", o->calibration,
                  "the calibration the log was computed with (default: the config's)");
-  auto* prefix =
-      sub.add_option("--prefix", o->prefix, "channel prefix (default: the only one in the log)");
+  auto* prefix = add_prefix_option(sub, o->prefix, "default: the only one in the log");
   sub.add_option("--script", o->script,
                  "plot script (default: share/exodaq/plot/exodaq_plot.py beside the tool)");
   sub.add_option("--python", o->python,

@@ -4,9 +4,9 @@
 // recording's pace (docs/replay.md).
 //   exodaq replay IN -c C (-o OUT.lcm | --live [--speed 1|4|0.5] [--url URL])
 //                 [--format auto|lcm|candump] [--calibration FILE]
-//                 [--channel NAME] [--prefix P] [-q] [-v]
-// The output file is written as a files::OutputFile (through msg::LogWriter):
-// it appears complete or not at all, and never replaces an input.
+//                 [--channel NAME] [-p PREFIX] [-q] [-v]
+// The output is written as a files::OutputFile (through msg::LogWriter): it
+// appears complete or not at all, and never replaces an input.
 //
 // Cycles are driven one by one on this thread (Acquisition::run_cycle). Into
 // a file they run flat out (the output does not depend on pacing: same input,
@@ -500,9 +500,9 @@ std::function<int()> setup_replay(CLI::App& sub) {
                  "LCM input: the encoder_raw_t channel (default: the one ending in "
                  "EXO_ENCODER_RAW)");
   auto* prefix =
-      sub.add_option("--prefix", o->prefix,
-                     "channel prefix of the output (default: the recording's for LCM input, the "
-                     "config's lcm.prefix for candump)");
+      add_prefix_option(sub, o->prefix,
+                        "of the output; default: the recording's for LCM input, the config's "
+                        "for candump");
   return [o, prefix, speed] {
     o->prefix_given = prefix->count() > 0;
     return run_replay(*o, speed->count() > 0);

@@ -173,7 +173,7 @@ std::function<int()> setup_status(CLI::App& app) {
   auto opt = std::make_shared<StatusOptions>();
   app.add_option("-c,--config", opt->config,
                  "the daemon's service config: LCM URL, prefix and clock policy from it");
-  app.add_option("--prefix,-p", opt->prefix, "channel prefix of the rig (config lcm.prefix)")
+  add_prefix_option(app, opt->prefix, "default: the config's, else none")
       ->each([opt](const std::string&) { opt->prefix_given = true; });
   app.add_option("--url,-u", opt->url, "LCM URL")
       ->capture_default_str()

@@ -208,8 +208,9 @@ std::function<int()> setup_view(CLI::App& app) {
   config->excludes(model);
   model->excludes(config);
   app.add_option("--url,-u", o->url, "LCM URL (default: the config's)");
-  app.add_option("--prefix,-p", o->prefix, "channel prefix (default: the config's)")
-      ->each([o](const std::string&) { o->prefix_given = true; });
+  add_prefix_option(app, o->prefix, "default: the config's")->each([o](const std::string&) {
+    o->prefix_given = true;
+  });
   app.add_option("--bind", o->bind, "address to listen on (numeric IPv4 or IPv6)")
       ->capture_default_str();
   app.add_option("--port", o->port, "TCP port (0: any free port, printed)")

@@ -41,6 +41,29 @@ struct CommonOptions {
 };
 const CommonOptions& common_options();
 
+// The one rig-selecting option of every command that reads or writes a rig's
+// channels: --prefix/-p P, the channel prefix of the rig (its config's
+// lcm.prefix: "RIG2_" -> RIG2_EXO_JOINT_STATE; docs/operations.md "Several
+// rigs"). `default_text` says what applies without it. The value obeys
+// lcm.prefix's rule (letters, digits and _ - . /); count() > 0 when given.
+inline CLI::Option* add_prefix_option(CLI::App& app, std::string& prefix,
+                                      const std::string& default_text) {
+  const CLI::Validator prefix_chars(
+      [](std::string& v) -> std::string {
+        for (const char c : v) {
+          const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                          (c >= '0' && c <= '9') || c == '_' || c == '-' || c == '.' || c == '/';
+          if (!ok) return "a prefix may hold letters, digits and _ - . / only: '" + v + "'";
+        }
+        return {};
+      },
+      "PREFIX");
+  return app
+      .add_option("--prefix,-p", prefix,
+                  "channel prefix of the rig (config lcm.prefix; " + default_text + ")")
+      ->check(prefix_chars);
+}
+
 // The command being run ("echo"), for messages.
 const std::string& command_name();
 // "exodaq <command>: <what>" on stderr, each line of `what` prefixed.

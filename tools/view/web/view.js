@@ -209,7 +209,10 @@
     b.className = 'banner ' + d;
     b.textContent = bannerText();
     const h = st.hello, f = st.frame, s = st.status, sm = st.stream;
-    $('rig').textContent = (s && s.rig) || (h && h.view.rig) || '–';
+    const rig = (s && s.rig) || (h && h.view.rig) || '';
+    $('rig').textContent = rig || '–';
+    // Several rigs, several tabs: each tab's title names its rig.
+    document.title = rig ? `exodaq view — ${rig}` : 'exodaq view';
     $('run').textContent = (f && f.run_id) || (s && s.run_id) || '–';
     $('seq').textContent = f ? String(f.seq) : '–';
     const rate = sm && sm.rate_hz !== null ? sm.rate_hz : null;
