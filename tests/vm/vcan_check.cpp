@@ -216,6 +216,8 @@ int main(int argc, char** argv) {
   std::string config_path, truth_path, board_log, iface = "vcan0", url, live_out;
   double duration = 0;
   int injected_bad = 0, injected_errors = 0;
+  // A daemon following another's SYNC has been seen 2 us off (docs/can-protocol.md, VM step 4).
+  long long utime_tolerance_us = 1;
   bool expect_down = false, expect_faults = true;
   app.add_option("--config", config_path)->required();
   app.add_option("--truth", truth_path)->required();
@@ -228,6 +230,8 @@ int main(int argc, char** argv) {
   app.add_option("--injected-error-frames", injected_errors, "error frames cansend injected");
   app.add_flag("--expect-down", expect_down, "the interface was taken down and up");
   app.add_flag("!--no-faults", expect_faults, "a clean run: no fault may be seen");
+  app.add_option("--utime-tolerance-us", utime_tolerance_us,
+                 "utime may differ from its frame's kernel stamp by this much (default 1)");
   app.add_option("--live-out", live_out,
                  "also write every received cycle to this file (not checked here)");
   CLI11_PARSE(app, argc, argv);
@@ -434,7 +438,7 @@ int main(int argc, char** argv) {
       }
       const std::int64_t kus = r.wall_ns / 1000;
       if (r.utime_js == kus) ++utime_exact;
-      if (std::llabs(r.utime_js - kus) <= 1) {
+      if (std::llabs(r.utime_js - kus) <= utime_tolerance_us) {
         ++utime_1us;
       } else if (prev != nullptr && kus < prev->utime_js && r.utime_js >= prev->utime_js &&
                  r.utime_js <= prev->utime_js + 1) {
@@ -492,16 +496,18 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "VCAN-CHECK: %lld present samples: wall_ns == a COUNTS frame's kernel stamp: %lld "
-      "(of its board seq: %lld); utime == stamp/1000: %lld exactly, %lld within 1 us, %lld "
+      "(of its board seq: %lld); utime == stamp/1000: %lld exactly, %lld within %lld us, %lld "
       "held at the previous cycle's utime (stamped before it, delivered after it)\n",
       static_cast<long long>(present), static_cast<long long>(stamp_found),
       static_cast<long long>(stamp_seq_ok), static_cast<long long>(utime_exact),
-      static_cast<long long>(utime_1us), static_cast<long long>(utime_held));
+      static_cast<long long>(utime_1us), utime_tolerance_us,
+      static_cast<long long>(utime_held));
   check(present > 4 * rate, "more than 4 s of samples delivered");
   check(stamp_seq_ok == present,
         "every delivered sample carries the kernel RX timestamp of a COUNTS frame of its seq");
   check(utime_1us + utime_held == present,
-        "every delivered sample's utime is that kernel stamp (within 1 us), or the previous "
+        "every delivered sample's utime is that kernel stamp (within --utime-tolerance-us), or "
+        "the previous "
         "cycle's when the stamp is older (never backwards)");
   check(palm_same == complete,
         "joint_state, palm_pose and encoder_raw of a cycle carry the same utime");
