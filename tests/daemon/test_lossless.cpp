@@ -14,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "alloc_counter.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
@@ -114,6 +115,16 @@ class KeepingSink final : public core::MessageSink {
     } catch (...) {
       return false;
     }
+    return true;
+  }
+};
+
+// Counts, allocation-free.
+class CountingSink final : public core::MessageSink {
+ public:
+  std::int64_t messages = 0;
+  bool publish(const std::string&, const core::OutgoingMessage&) noexcept override {
+    ++messages;
     return true;
   }
 };
@@ -282,6 +293,38 @@ TEST(Lossless, ADriftingBoardClockLosesNothingAndInventsNothing) {
       EXPECT_GT(r.acq->caught_up_samples(), 5);
     }
   }
+}
+
+// The catch-up path allocates nothing: wakes driven by hand on a free-running
+// sim board, every 250th of them 30 ms late (31 samples in one wake).
+TEST(Lossless, CatchingUpAllocatesNothing) {
+  auto src = free_running_sim(0.0, 0.0);
+  drivers::SimSource* sim = src.get();
+  core::AcquisitionOptions wiring;
+  wiring.source = std::move(src);
+  wiring.sink = std::make_unique<CountingSink>();
+  wiring.realtime = false;
+  auto acq = core::build_acquisition(sim_config(), std::move(wiring));
+  acq->prepare_for_manual_cycles();
+  acq->run_cycle(kT0, kT0 + kWakeLatency);  // the first wake outside the scope
+  acq->publisher().drain();
+  std::int64_t k = 1;
+  {
+    test::AllocationScope scope;
+    for (int wake = 1; wake < 3000; ++wake, ++k) {
+      const bool late = wake % 250 == 0;
+      acq->run_cycle(kT0 + k * kMs, kT0 + k * kMs + (late ? 30 * kMs : kWakeLatency));
+      if (late) k += 30;  // the deadlines it overran are skipped
+      acq->publisher().drain();
+    }
+    EXPECT_EQ(scope.count(), 0U);
+  }
+  EXPECT_EQ(acq->caught_up_samples(), 11 * 30);
+  // Of the 31 samples of a wake 30 ms late, the newest two are not over a
+  // period old (0 and exactly 1 ms): 29 LATE.
+  EXPECT_EQ(acq->late_samples(), 11 * 29);
+  EXPECT_EQ(acq->cycles(), k);  // one cycle per board sample, none skipped
+  EXPECT_EQ(sim->stats().superseded_samples, 0);
 }
 
 namespace {
