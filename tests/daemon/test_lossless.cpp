@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -229,6 +230,14 @@ TEST(Lossless, AFreeRunningBoardsSamplesAreAllPublishedAfterALoopStall) {
     // The stall's wake comes stall + 20 µs after its deadline: its own sample
     // and the stall_ms the board took meanwhile are waiting; all but the
     // newest are more than a period old.
+    std::printf(
+        "LOSSLESS sim stall %lld ms: %lld cycles, %lld caught up in one wake, %lld LATE, %lld "
+        "overruns, superseded %lld, missing %lld\n",
+        static_cast<long long>(stall_ms), static_cast<long long>(r.acq->cycles()),
+        static_cast<long long>(r.acq->caught_up_samples()), static_cast<long long>(late),
+        static_cast<long long>(r.acq->overruns()),
+        static_cast<long long>(sim->stats().superseded_samples),
+        static_cast<long long>(sim->stats().missing_samples));
     EXPECT_EQ(late, stall_ms);
     EXPECT_EQ(r.acq->caught_up_samples(), stall_ms);
     EXPECT_EQ(r.acq->backlog_wakes(), 0);
@@ -252,6 +261,13 @@ TEST(Lossless, ABacklogBeyondTheCatchUpBoundIsCarriedToTheNextWakes) {
   const LoopRun r = run_loop(std::move(src), std::move(clock), *c, 900);
   const std::int64_t late =
       expect_every_board_sample_once(r, *c, &sim->rig(), sim->start_mono_ns());
+  std::printf(
+      "LOSSLESS sim stall 200 ms: %lld cycles, %lld caught up, %lld wakes left a backlog, %lld "
+      "LATE, superseded %lld, missing %lld\n",
+      static_cast<long long>(r.acq->cycles()), static_cast<long long>(r.acq->caught_up_samples()),
+      static_cast<long long>(r.acq->backlog_wakes()), static_cast<long long>(late),
+      static_cast<long long>(sim->stats().superseded_samples),
+      static_cast<long long>(sim->stats().missing_samples));
   EXPECT_GE(late, 200);
   EXPECT_GE(r.acq->backlog_wakes(), 3);  // 201 samples at 64 a wake: the stall's wake and 3 more
   EXPECT_EQ(sim->stats().superseded_samples, 0);
@@ -280,6 +296,13 @@ TEST(Lossless, ADriftingBoardClockLosesNothingAndInventsNothing) {
     EXPECT_EQ(sim->stats().superseded_samples, 0);
     EXPECT_EQ(sim->stats().missing_samples, 0);
     EXPECT_EQ(sim->stats().seq_gaps, 0);
+    std::printf(
+        "LOSSLESS sim drift %+.0f ppm, stall 5 ms: %lld cycles in %zu wakes, %lld caught "
+        "up, %lld LATE, superseded %lld, missing %lld\n",
+        drift, static_cast<long long>(r.acq->cycles()), c->wakes.size(),
+        static_cast<long long>(r.acq->caught_up_samples()), static_cast<long long>(late),
+        static_cast<long long>(sim->stats().superseded_samples),
+        static_cast<long long>(sim->stats().missing_samples));
     // 3500 samples at 500 ppm: the phase slips by 1.75 periods, so some wake
     // went without a sample (slow) or with two (fast, beyond the stall's five).
     std::int64_t empty_wakes = 0;
@@ -408,6 +431,12 @@ TEST(Lossless, AsSyncMasterALateSyncIsStampedAtTheTrueInstantAndCounted) {
     const std::int64_t deadline = start + (js[i].seq + 1) * kMs;
     if (board.sync_at[i] - deadline > kMs / 10) ++stamped_late;
   }
+  std::printf(
+      "LOSSLESS sync master, a wake 3.3 ms late: late SYNCs %lld, overruns %lld, seq holes %lld, "
+      "missing %lld, superseded %lld\n",
+      static_cast<long long>(can->detail().late_syncs), static_cast<long long>(r.acq->overruns()),
+      static_cast<long long>(holes), static_cast<long long>(can->stats().missing_samples),
+      static_cast<long long>(can->detail().superseded_samples));
   EXPECT_EQ(stamped_late, 1);
   EXPECT_EQ(can->detail().late_syncs, 1);
   EXPECT_EQ(can->detail().superseded_samples, 0);
@@ -443,6 +472,13 @@ TEST(Lossless, FollowingAFreeRunningBoardOnSocketCanAStallLosesNothing) {
   }
   // Cycles arrive 0.2 ms into their period: of the 50 waiting after the
   // stall, the newest is 0.8 ms old, the other 49 over a period.
+  std::printf(
+      "LOSSLESS socketcan free-running, stall 50 ms: %lld cycles, %lld caught up, %lld LATE, "
+      "superseded %lld, missing %lld, queue overflows %lld\n",
+      static_cast<long long>(r.acq->cycles()), static_cast<long long>(r.acq->caught_up_samples()),
+      static_cast<long long>(late), static_cast<long long>(can->stats().superseded_samples),
+      static_cast<long long>(can->stats().missing_samples),
+      static_cast<long long>(can->decoder().detail().queue_overflows));
   EXPECT_EQ(late, 49);
   EXPECT_EQ(can->detail().superseded_samples, 0);
   EXPECT_EQ(can->stats().superseded_samples, 0);
