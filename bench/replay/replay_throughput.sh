@@ -25,7 +25,7 @@ if command -v taskset >/dev/null 2>&1; then pin="taskset -c 0"; fi
 replay() {
   rm -f "$work/out.lcm"
   /usr/bin/time -f "%e %U %S %M" -o "$work/time" $pin "$build/tools/exodaq" replay "$1" \
-    --config "$src/config/sim.yaml" --out "$work/out.lcm" --speed max --quiet | sed -n '3p'
+    -c "$src/config/sim.yaml" -o "$work/out.lcm" --speed max | sed -n '3p'
   awk -v c="$2" '{
     cpu = $2 + $3
     printf "  end to end (process): %d cycles, %.3f s wall = %.0f cycles/s; %.3f s CPU = %.0f cycles per CPU second (%.0fx real time); peak RSS %.1f MiB\n",

@@ -1,5 +1,7 @@
 #include "exodaq/config/yaml_reader.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -8,12 +10,41 @@
 #include <fstream>
 #include <sstream>
 
+#include "exodaq/common/files.hpp"
+
 namespace exodaq::config {
 
 namespace {
 std::string format(const std::string& file, int line, const std::string& what) {
   if (line > 0) return file + ":" + std::to_string(line) + ": " + what;
   return file + ": " + what;
+}
+
+// Whether `unknown` (a key nobody asked for) is most likely `known`
+// misspelled. Long keys: within files::typo_allowance, unless they differ
+// only in digits (dtheta1_deg/dtheta4_deg are siblings). Short keys (up to 6
+// characters) are often siblings (a3/d3, dx_mm/dd5_mm, x_mm/y_mm): only one
+// letter added or dropped (rigg/rig), or two letters swapped (modle/model).
+bool likely_misspelling(const std::string& unknown, const std::string& known) {
+  const int d = files::edit_distance(unknown, known);
+  if (d == 0) return false;
+  if (unknown.size() == known.size()) {
+    bool digits_only = true;
+    for (std::size_t i = 0; i < known.size(); ++i) {
+      if (unknown[i] != known[i]) {
+        digits_only = digits_only && std::isdigit(static_cast<unsigned char>(unknown[i])) &&
+                      std::isdigit(static_cast<unsigned char>(known[i]));
+      }
+    }
+    if (digits_only) return false;
+  }
+  if (known.size() > 6) return d <= files::typo_allowance(known);
+  if (unknown.size() != known.size()) return d == 1;
+  std::string a = unknown;
+  std::string b = known;
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  return a == b && d <= 2;
 }
 
 const char* kind_name(const YAML::Node& n) {
@@ -48,6 +79,10 @@ int line_of(const YAML::Node& node) noexcept {
 }
 
 YAML::Node load_yaml_text(const std::string& text, const std::string& name) {
+  // yaml-cpp reads a NUL as the end of the text and passes invalid UTF-8 on.
+  if (const auto problem = files::find_text_problem(text)) {
+    throw ConfigError(name, problem->line, problem->what);
+  }
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -63,11 +98,13 @@ YAML::Node load_yaml_text(const std::string& text, const std::string& name) {
 }
 
 YAML::Node load_yaml_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ConfigError(path, 0, std::string("cannot open: ") + std::strerror(errno));
-  std::ostringstream text;
-  text << in.rdbuf();
-  return load_yaml_text(text.str(), path);
+  std::string text;
+  try {
+    text = files::read_input(path, files::kMaxYamlBytes);
+  } catch (const files::FileError& e) {
+    throw ConfigError(path, 0, e.reason());
+  }
+  return load_yaml_text(text, path);
 }
 
 MapReader::MapReader(std::string file, const YAML::Node& node, std::string context)
@@ -103,7 +140,18 @@ bool MapReader::has(const std::string& key) const {
 YAML::Node MapReader::child(const std::string& key) {
   consumed_.insert(key);
   const YAML::Node n = node_[key];
-  if (!n) fail(node_, "missing field '" + key + "' in " + context_);
+  if (!n) {
+    // A key nobody asked for that is close to this one is most likely it,
+    // misspelled: name it rather than only the missing field.
+    for (auto it = node_.begin(); it != node_.end(); ++it) {
+      if (!it->first.IsScalar() || consumed_.count(it->first.Scalar()) > 0) continue;
+      if (likely_misspelling(it->first.Scalar(), key)) {
+        fail(it->first, "unknown key '" + it->first.Scalar() + "' in " + context_ +
+                            ": did you mean '" + key + "'? (missing field '" + key + "')");
+      }
+    }
+    fail(node_, "missing field '" + key + "' in " + context_);
+  }
   return n;
 }
 
@@ -241,8 +289,12 @@ void MapReader::finish() const {
     if (consumed_.count(key) == 0) {
       std::string known;
       for (const auto& k : consumed_) known += (known.empty() ? "" : ", ") + k;
+      std::string near =
+          files::closest_match(key, std::vector<std::string>(consumed_.begin(), consumed_.end()));
+      if (!near.empty() && !likely_misspelling(key, near)) near.clear();  // a6: a3 or a5?
       throw ConfigError(file_, line_of(it->first),
                         "unknown key '" + key + "' in " + context_ +
+                            (near.empty() ? std::string() : ": did you mean '" + near + "'?") +
                             (known.empty() ? std::string() : " (expected one of: " + known + ")"));
     }
   }

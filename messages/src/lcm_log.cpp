@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <cstring>
 
+#include "exodaq/common/files.hpp"
+
 namespace exodaq::msg {
 
 namespace {
@@ -82,12 +84,15 @@ LogError::LogError(const std::string& file, std::int64_t offset, const std::stri
       offset_(offset) {}
 
 LogReader::LogReader(const std::string& path) : path_(path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) throw LogError(path, -1, errno_text(errno));
-  if (!S_ISREG(st.st_mode)) throw LogError(path, -1, "not a regular file");
-  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd_ < 0) throw LogError(path, -1, errno_text(errno));
-  size_ = static_cast<std::int64_t>(st.st_size);
+  files::InputInfo info;
+  try {
+    // A regular file, checked before reading (a FIFO does not block); no
+    // size limit: the log is read as a stream.
+    fd_ = files::open_input(path, -1, &info);
+  } catch (const files::FileError& e) {
+    throw LogError(path, -1, e.reason());
+  }
+  size_ = info.size;
   try {
     if (size_ == 0) throw LogError(path, -1, "empty file, not an LCM log");
     buffer_.resize(kChunkBytes);
@@ -197,30 +202,26 @@ std::string LogReader::damage_text() const {
   return out;
 }
 
-LogWriter::LogWriter(const std::string& path) : path_(path) {
-  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd_ < 0) throw LogError(path, -1, "cannot create: " + errno_text(errno));
+LogWriter::LogWriter(const std::string& path, const std::vector<std::string>& inputs)
+    : path_(path) {
+  files::OutputOptions o;
+  o.inputs = inputs;
+  try {
+    out_ = std::make_unique<files::OutputFile>(path, o);
+  } catch (const files::FileError& e) {
+    throw LogError(path, -1, e.reason());
+  }
   buffer_.resize(kChunkBytes);
 }
 
-LogWriter::~LogWriter() {
-  if (fd_ < 0) return;
-  try {
-    flush();
-  } catch (const LogError&) {
-    // Lost, as documented: close() reports them.
-  }
-  ::close(fd_);
-}
+LogWriter::~LogWriter() = default;  // an OutputFile not committed leaves nothing behind
 
 void LogWriter::write_all(const void* data, std::size_t size) {
-  const auto* p = static_cast<const std::uint8_t*>(data);
-  while (size > 0) {
-    const ssize_t n = ::write(fd_, p, size);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) throw LogError(path_, -1, "write failed: " + errno_text(errno));
-    p += n;
-    size -= static_cast<std::size_t>(n);
+  try {
+    out_->write(data, size);  // chunks this large go straight to the file
+  } catch (const files::FileError& e) {
+    out_.reset();
+    throw LogError(path_, -1, e.reason());
   }
 }
 
@@ -232,7 +233,7 @@ void LogWriter::flush() {
 
 void LogWriter::write(std::string_view channel, std::int64_t timestamp_us, const void* data,
                       std::size_t size) {
-  if (fd_ < 0) throw LogError(path_, -1, "write after close");
+  if (!out_) throw LogError(path_, -1, "write after close or a failed write");
   if (channel.empty() || channel.size() > kMaxChannelBytes || size > kMaxDataBytes) {
     throw LogError(path_, -1, "event too large or without a channel");
   }
@@ -259,17 +260,15 @@ void LogWriter::write(std::string_view channel, std::int64_t timestamp_us, const
 }
 
 void LogWriter::close() {
-  if (fd_ < 0) return;
-  const int fd = fd_;
+  if (!out_) return;
+  flush();
   try {
-    flush();
-  } catch (const LogError&) {
-    fd_ = -1;
-    ::close(fd);
-    throw;
+    out_->commit();
+  } catch (const files::FileError& e) {
+    out_.reset();
+    throw LogError(path_, -1, e.reason());
   }
-  fd_ = -1;
-  if (::close(fd) != 0) throw LogError(path_, -1, "write failed: " + errno_text(errno));
+  out_.reset();
 }
 
 std::map<std::string, std::int64_t> scan_channels(const std::string& path) {

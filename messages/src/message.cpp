@@ -1,5 +1,6 @@
 #include "exodaq/messages/message.hpp"
 
+#include <cstdio>
 #include <type_traits>
 
 namespace exodaq::msg {
@@ -41,6 +42,27 @@ std::optional<Message> decode(Kind k, const void* data, std::size_t size) {
 
 Stamp stamp_of(const Message& m) noexcept {
   return std::visit([](const auto& v) { return Stamp{v.utime, v.mono_ns, v.seq, v.run_id}; }, m);
+}
+
+std::string run_id_text(std::int64_t run_id) {
+  char buf[24];
+  std::snprintf(buf, sizeof buf, "%016llx",
+                static_cast<unsigned long long>(static_cast<std::uint64_t>(run_id)));
+  return buf;
+}
+
+std::optional<std::int64_t> parse_run_id(std::string_view text) {
+  if (text.size() != 16) return std::nullopt;
+  std::uint64_t v = 0;
+  for (const char c : text) {
+    int d = -1;
+    if (c >= '0' && c <= '9') d = c - '0';
+    if (c >= 'a' && c <= 'f') d = c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') d = c - 'A' + 10;
+    if (d < 0) return std::nullopt;
+    v = (v << 4) | static_cast<std::uint64_t>(d);
+  }
+  return static_cast<std::int64_t>(v);
 }
 
 bool is_startup_message(const Stamp& s) noexcept {

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "exodaq/common/files.hpp"
 #include "exodaq/config/yaml_reader.hpp"
 
 namespace exodaq::config {
@@ -180,19 +181,14 @@ std::string calibration_to_yaml(const Calibration& cal) {
   return o.str();
 }
 
-void write_calibration_file(const std::string& path, const Calibration& cal) {
-  const std::string text = calibration_to_yaml(cal);
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw ConfigError(path, 0, "cannot write '" + tmp + "'");
-    out << text;
-    out.flush();
-    if (!out) throw ConfigError(path, 0, "write to '" + tmp + "' failed");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw ConfigError(path, 0, "cannot rename '" + tmp + "' to '" + path + "'");
+void write_calibration_file(const std::string& path, const Calibration& cal,
+                            const std::vector<std::string>& inputs) {
+  files::OutputOptions o;
+  o.inputs = inputs;
+  try {
+    files::write_output(path, calibration_to_yaml(cal), o);
+  } catch (const files::FileError& e) {
+    throw ConfigError(path, 0, e.reason());
   }
 }
 

@@ -6,6 +6,7 @@
 #include <set>
 #include <sstream>
 
+#include "exodaq/common/files.hpp"
 #include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 
@@ -153,6 +154,23 @@ void parse_logging(MapReader m, LoggingSettings& log) {
   m.finish();
 }
 
+// A file the config names (model, calibration): one that cannot be opened is
+// reported at the config's line, with the path as written and as resolved;
+// errors inside it carry its own file:line.
+template <typename T>
+T load_referenced(const std::string& config_file, const YAML::Node& at, const std::string& key,
+                  const std::string& path, T (*load)(const std::string&)) {
+  try {
+    (void)files::check_input(path, files::kMaxYamlBytes);
+  } catch (const files::FileError& e) {
+    const std::string written = at.IsScalar() ? at.Scalar() : path;
+    const std::string where =
+        written == path ? path : "'" + written + "', relative to the config's folder: " + path;
+    throw ConfigError(config_file, line_of(at), key + " file " + where + ": " + e.reason());
+  }
+  return load(path);
+}
+
 ServiceConfig parse(const YAML::Node& root, const std::string& file) {
   ServiceConfig c;
   c.file = file;
@@ -177,7 +195,7 @@ ServiceConfig parse(const YAML::Node& root, const std::string& file) {
   top.finish();
 
   // The referenced files, each with its own file:line errors.
-  c.model = load_model_file(c.model_path);
+  c.model = load_referenced(file, root["model"], "model", c.model_path, &load_model_file);
   if (c.model.chain.joint_count() != kJointCount) {
     throw ConfigError(file, line_of(root["model"]),
                       "model '" + c.model_path + "' has " +
@@ -190,7 +208,8 @@ ServiceConfig parse(const YAML::Node& root, const std::string& file) {
                         "joint name '" + j.name + "' is longer than 31 characters");
     }
   }
-  c.calibration = load_calibration_file(c.calibration_path);
+  c.calibration = load_referenced(file, root["calibration"], "calibration", c.calibration_path,
+                                  &load_calibration_file);
   c.model.rig.singularity_threshold = c.singularity_threshold;
   return c;
 }

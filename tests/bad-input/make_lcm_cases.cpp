@@ -15,6 +15,8 @@
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/messages/lcm_log.hpp"
+#include "exodaq/messages/message.hpp"
+#include "sample_messages.hpp"
 
 namespace fs = std::filesystem;
 
@@ -24,24 +26,12 @@ using Buf = std::vector<std::uint8_t>;
 using Events = std::vector<std::pair<std::string, Buf>>;
 
 exodaq::encoder_raw_t raw(std::int64_t seq, std::int64_t run_id = 0x5eed) {
-  exodaq::encoder_raw_t m{};
-  m.utime = 1'700'000'000'000'000 + seq * 1000;
-  m.mono_ns = 5'000'000'000 + seq * 1'000'000;
-  m.seq = seq;
-  m.run_id = run_id;
-  m.present = 1;
-  m.board_seq = static_cast<std::int16_t>(seq & 0xFF);
-  for (int c = 0; c < 6; ++c) m.count16[c] = static_cast<std::int16_t>(100 * c + seq);
-  m.board_state = 1;
-  m.wall_ns = m.utime * 1000;
-  return m;
+  return exodaq::test::raw_message(seq, run_id);
 }
 
 template <typename T>
 Buf encoded(const T& m) {
-  Buf b(static_cast<std::size_t>(m.getEncodedSize()));
-  m.encode(b.data(), 0, static_cast<int>(b.size()));
-  return b;
+  return exodaq::msg::encode(m);
 }
 
 exodaq::joint_state_t joint_state(std::int64_t seq) {
@@ -137,10 +127,19 @@ int main(int argc, char** argv) {
   // Garbage instead of an LCM log.
   write_bytes(d / "not_an_lcm_log.lcm", Buf{'h', 'e', 'l', 'l', 'o', '\n'});
 
-  // Not here: a log truncated in the middle of its last event, or damaged
-  // after some good events. LCM's reader stops there without an error the
-  // replay could report, so those replay what came before without a message
-  // (docs/robustness.md "Bad input", known gap).
+  // Garbage appended after three good events (issue 15 point 8): the three
+  // are replayed, the garbage reported with its bytes.
+  write_log(d / "garbage_after_last_event.lcm", good(3));
+  Buf g = read_all(d / "garbage_after_last_event.lcm");
+  for (const char ch : std::string("\xde\xad\xbe\xef not an event"))
+    g.push_back(static_cast<std::uint8_t>(ch));
+  write_bytes(d / "garbage_after_last_event.lcm", g);
+
+  // A recorder killed mid-write: the last event cut short.
+  write_log(d / "cut_last_event.lcm", good(3));
+  Buf cut = read_all(d / "cut_last_event.lcm");
+  cut.resize(cut.size() - 10);
+  write_bytes(d / "cut_last_event.lcm", cut);
 
   // Corrupted: bytes of the second event's header overwritten.
   write_log(d / "corrupt_event_header.lcm", good(4));

@@ -138,8 +138,8 @@ exodaq::test::RunResult run_tool(const Case& c, const std::string& tmp) {
     std::ofstream(path) << cfg;
     return exodaq::test::run({EXODAQD, "--config", path, "--check-config"});
   }
-  return exodaq::test::run({EXODAQ_TOOL, "replay", c.file, "--config", sim_config(), "--format",
-                            c.kind, "--out", tmp + "/out.lcm", "--quiet"});
+  return exodaq::test::run({EXODAQ_TOOL, "replay", c.file, "-c", sim_config(), "--format", c.kind,
+                            "-o", tmp + "/out.lcm", "-q"});
 }
 
 class BadInput : public ::testing::TestWithParam<Case> {
@@ -200,7 +200,10 @@ TEST_P(BadInput, LoaderAndToolGiveTheExactMessage) {
     } else if (replayed) {
       shown = "  " + line + "\n";
     } else {
-      shown = "exodaq: " + line + "\n";
+      // The tool's error line: "exodaq replay: <what>", without the
+      // backend's own "replay: ".
+      const std::string what = line.rfind("replay: ", 0) == 0 ? line.substr(8) : line;
+      shown = "exodaq replay: " + what + "\n";
     }
     EXPECT_NE(r.err.find(shown), std::string::npos)
         << "expected on stderr: " << shown << "stderr:\n"

@@ -1,9 +1,12 @@
 // `exodaq calibrate` end to end on generated CSVs (1 kHz encoders, 480 Hz mocap).
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -163,6 +166,102 @@ TEST_F(CalibrateCli, TooFewPointsFails) {
       "/config/calibration/bounds_seed000.yaml --out " + dir_ + "/y.yaml --max-points 10 --quiet");
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.output.find("too few calibration points: 10"), std::string::npos) << r.output;
+}
+
+// Issue 15 point 6: the calibration file is written safely.
+class CalibrateOutput : public CalibrateCli {
+ protected:
+  Result calibrate_to(const std::string& out) {
+    const std::string src = EXODAQ_SOURCE_DIR;
+    return run("calibrate --encoders " + dir_ + "/enc_val.csv --markers " + dir_ +
+               "/mocap_val.csv --bounds " + src +
+               "/config/calibration/bounds_seed000.yaml --max-points 100 -q -o " + out);
+  }
+  // Files in `dir` whose names start with '.' (a left-over temporary file).
+  static int hidden_files(const std::string& dir) {
+    int n = 0;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
+      n += e.path().filename().string()[0] == '.' ? 1 : 0;
+    }
+    return n;
+  }
+};
+
+TEST_F(CalibrateOutput, ASymlinkIsFollowedAndKept) {
+  // The reproduction: current.yaml -> rig-2026-11.yaml became a regular file.
+  const std::string d = dir_ + "/link";
+  std::filesystem::create_directories(d);
+  std::ofstream(d + "/rig-2026-11.yaml") << "old\n";
+  std::filesystem::permissions(d + "/rig-2026-11.yaml", std::filesystem::perms(0640));
+  std::filesystem::create_symlink("rig-2026-11.yaml", d + "/current.yaml");
+  const Result r = calibrate_to(d + "/current.yaml");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::is_symlink(d + "/current.yaml"));
+  EXPECT_EQ(std::filesystem::read_symlink(d + "/current.yaml"), "rig-2026-11.yaml");
+  EXPECT_NO_THROW(config::load_calibration_file(d + "/rig-2026-11.yaml"));
+  // The replaced file keeps its mode.
+  EXPECT_EQ(std::filesystem::status(d + "/rig-2026-11.yaml").permissions(),
+            std::filesystem::perms(0640));
+  EXPECT_EQ(hidden_files(d), 0);
+}
+
+TEST_F(CalibrateOutput, ADeviceNodeIsNotReplaced) {
+  // The reproduction: as root, --out on a device node replaced it.
+  const std::string d = dir_ + "/dev";
+  std::filesystem::create_directories(d);
+  const std::string node = d + "/null";
+  if (::mknod(node.c_str(), S_IFCHR | 0666, makedev(1, 3)) != 0) {
+    GTEST_SKIP() << "mknod needs root";
+  }
+  const Result r = calibrate_to(node);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("exodaq calibrate: " + node +
+                          ": is a character device, not a regular file: not replaced"),
+            std::string::npos)
+      << r.output;
+  struct stat st {};
+  ASSERT_EQ(::stat(node.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
+  EXPECT_EQ(hidden_files(d), 0);
+}
+
+TEST_F(CalibrateOutput, AnInputIsNotReplaced) {
+  const std::string before = [&] {
+    std::ifstream in(dir_ + "/mocap_val.csv");
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }();
+  const Result r = calibrate_to(dir_ + "/mocap_val.csv");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("is also an input"), std::string::npos) << r.output;
+  std::ifstream in(dir_ + "/mocap_val.csv");
+  std::stringstream after;
+  after << in.rdbuf();
+  EXPECT_EQ(after.str(), before);
+}
+
+TEST_F(CalibrateOutput, AFullFilesystemLeavesNothingAndSaysWhy) {
+  // A 64 KiB tmpfs filled to the last byte (root: the test machine is).
+  const std::string d = dir_ + "/full";
+  std::filesystem::create_directories(d);
+  if (std::system(("mount -t tmpfs -o size=64k tmpfs " + d + " 2>/dev/null").c_str()) != 0) {
+    GTEST_SKIP() << "cannot mount a tmpfs (needs root)";
+  }
+  std::ofstream(d + "/calibration.yaml") << "previous\n";  // an earlier file...
+  std::system(("dd if=/dev/zero of=" + d + "/filler bs=4k count=100 2>/dev/null").c_str());
+  const Result r = calibrate_to(d + "/calibration.yaml");
+  std::string previous;
+  std::getline(std::ifstream(d + "/calibration.yaml"), previous);
+  const int hidden = hidden_files(d);
+  std::system(("umount " + d).c_str());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("exodaq calibrate: " + d +
+                          "/calibration.yaml: cannot write: No space left on device"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(previous, "previous");  // ... is left as it was
+  EXPECT_EQ(hidden, 0);             // and no temporary file
 }
 
 }  // namespace

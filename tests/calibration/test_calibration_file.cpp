@@ -112,7 +112,8 @@ TEST(CalibrationFile, ErrorMessagesAreExact) {
   EXPECT_EQ(error_of(replace(kGood, "marker_offset_mm: [-0.10, -0.16, -8.46]\n", "")),
             "cal.yaml:1: missing field 'marker_offset_mm' in calibration");
   EXPECT_EQ(error_of(replace(kGood, "marker_offset_mm", "marker_offset")),
-            "cal.yaml:1: missing field 'marker_offset_mm' in calibration");
+            "cal.yaml:9: unknown key 'marker_offset' in calibration: did you mean "
+            "'marker_offset_mm'? (missing field 'marker_offset_mm')");
   EXPECT_EQ(error_of(replace(kGood, "exodaq-calibration-1", "exodaq-calibration-2")),
             "cal.yaml:1: 'format' must be 'exodaq-calibration-1', found 'exodaq-calibration-2'");
   EXPECT_EQ(error_of(replace(kGood, "d3: -0.48", "d3: x")),
@@ -120,7 +121,8 @@ TEST(CalibrationFile, ErrorMessagesAreExact) {
   EXPECT_EQ(error_of(kGood + "camera:\n  translation_mm: [1, 2]\n  euler_xyz_deg: [0, 0, 0]\n"),
             "cal.yaml:11: 'translation_mm' must have 3 numbers, has 2");
   EXPECT_EQ(error_of(kGood + "encoder_offsets_rad: [0, 0, 0, 0, 0, 0]\n"),
-            "cal.yaml:10: unknown key 'encoder_offsets_rad' in calibration (expected one of: "
+            "cal.yaml:10: unknown key 'encoder_offsets_rad' in calibration: did you mean "
+            "'encoder_offsets_deg'? (expected one of: "
             "camera, dh_deviations_mm, encoder_offsets_deg, format, marker_offset_mm, provenance)");
   EXPECT_EQ(error_of(kGood + "provenance:\n  rms_after_mm: .inf\n"),
             "cal.yaml:11: 'rms_after_mm' must be a finite number, found '.inf'");

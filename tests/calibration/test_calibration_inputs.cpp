@@ -1,6 +1,7 @@
 // Encoder and marker CSV readers and the time alignment.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <string>
 
 #include "exodaq/calibration/inputs.hpp"
@@ -66,13 +67,67 @@ TEST(EncoderCsv, MalformedRowsNameTheLine) {
             "enc.csv: fewer than two encoder samples");
 }
 
-TEST(EncoderLog, UnknownFormatIsAClearError) {
+TEST(EncoderLog, AMissingOrSpecialFileIsAClearError) {
+  const auto error = [](const std::string& path) {
+    try {
+      read_encoder_log(path);
+    } catch (const config::ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error("/nonexistent/run.lcm"),
+            "/nonexistent/run.lcm: cannot open: No such file or directory");
+  EXPECT_EQ(error("/dev/zero"), "/dev/zero: is a character device, not a regular file");
+  EXPECT_EQ(error("/tmp"), "/tmp: is a directory, not a regular file");
+}
+
+// The CSV of `exodaq export` (docs/messages.md): calibrated angles, read as
+// θᴿ = θ − the recorded calibration's offsets; homed and flags per joint.
+const std::string kExportHeader =
+    "utime_us,mono_ns,seq,run_id,a_rad,b_rad,c_rad,d_rad,e_rad,f_rad,"
+    "a_vel_rad_s,b_vel_rad_s,c_vel_rad_s,d_vel_rad_s,e_vel_rad_s,f_vel_rad_s,"
+    "a_count,b_count,c_count,d_count,e_count,f_count,"
+    "a_homed,b_homed,c_homed,d_homed,e_homed,f_homed,"
+    "a_flags,b_flags,c_flags,d_flags,e_flags,f_flags,sample_flags,palm_x_m\n";
+
+std::string export_row(std::int64_t utime, double pos, int homed, int flags, int sample_flags) {
+  std::string r = std::to_string(utime) + ",1,2,0000000000005eed";
+  for (int j = 0; j < 6; ++j) r += "," + std::to_string(pos + j);
+  for (int j = 0; j < 6; ++j) r += ",0";
+  for (int j = 0; j < 6; ++j) r += ",100";
+  for (int j = 0; j < 6; ++j) r += "," + std::to_string(j == 2 ? homed : 1);
+  for (int j = 0; j < 6; ++j) r += "," + std::to_string(j == 4 ? flags : 0);
+  return r + "," + std::to_string(sample_flags) + ",\n";
+}
+
+TEST(EncoderCsv, ReadsExodaqExportWithTheRecordedCalibration) {
+  const std::string text = kExportHeader + export_row(1000, 1.0, 1, 0, 0) +
+                           export_row(2000, 2.0, 0, 0, 0) + export_row(3000, 3.0, 1, 64, 0) +
+                           export_row(4000, 4.0, 1, 4, 0) + export_row(5000, 5.0, 1, 0, 1);
+  EncoderReadOptions o;
+  o.recorded_offsets_rad = std::array<double, 6>{0.5, 0.25, 0, 0, 0, -1};
+  o.recorded_calibration = "cal.yaml";
+  const auto e = EncoderCsvReader().parse(text, "export.csv", o);
+  ASSERT_EQ(e.samples.size(), 5u);
+  EXPECT_EQ(e.samples[0].utime_us, 1000);
+  EXPECT_EQ(e.samples[0].theta_r[0], 0.5);   // 1 - 0.5
+  EXPECT_EQ(e.samples[0].theta_r[1], 1.75);  // 2 - 0.25
+  EXPECT_EQ(e.samples[0].theta_r[5], 7.0);   // 6 + 1
+  EXPECT_TRUE(e.samples[0].valid());
+  EXPECT_EQ(e.samples[1].homed_mask, 0x3F & ~0x04);  // joint 3 not homed
+  EXPECT_TRUE(e.samples[2].valid());                 // JOINT_HELD is not a fault
+  EXPECT_EQ(e.samples[3].fault_mask, 0x10);          // GLITCH on joint 5
+  EXPECT_EQ(e.samples[4].fault_mask, 0x3F);          // SAMPLE_MISSING: nothing measured
+
+  // Without the calibration: refused, naming what to give.
   try {
-    read_encoder_log("/tmp/run.lcmlog");
+    EncoderCsvReader().parse(text, "export.csv");
     FAIL();
-  } catch (const config::ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("unsupported encoder log format '.lcmlog'"),
-              std::string::npos);
+  } catch (const config::ConfigError& err) {
+    EXPECT_EQ(std::string(err.what()),
+              "export.csv:1: holds calibrated joint angles (theta = offset + theta_R): name the "
+              "calibration they were computed with (-c CONFIG or --recorded-calibration FILE)");
   }
 }
 

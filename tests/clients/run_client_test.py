@@ -14,7 +14,9 @@ run in parallel with each other and with a live exodaqd on the same URL.
   run_client_test.py echo-csv FIXTURE URL -- TOOL
   run_client_test.py echo-literal FIXTURE URL -- TOOL
   run_client_test.py echo-table FIXTURE URL -- TOOL
+  run_client_test.py echo-errors FIXTURE URL -- TOOL
   run_client_test.py status FIXTURE URL -- TOOL
+  run_client_test.py status-json FIXTURE URL -- TOOL
   run_client_test.py status-timeout FIXTURE URL -- TOOL
       the `exodaq echo` / `exodaq status` commands against the fixture publisher.
 """
@@ -141,6 +143,10 @@ def parse_csv(text):
     return list(csv.reader(io.StringIO(text)))
 
 
+NAMES = ("shoulder_abduction", "shoulder_flexion", "shoulder_rotation", "elbow_flexion",
+         "wrist_pronation", "wrist_flexion")  # the fixture's joints
+
+
 def run_echo_csv(fixture, url, tool):
     prefix = unique_prefix("echo_csv")
     n = 25
@@ -154,35 +160,38 @@ def run_echo_csv(fixture, url, tool):
     header, rows = rows[0], rows[1:]
     if len(rows) != n:
         fail("expected %d rows, got %d" % (n, len(rows)))
+    # The schema of docs/messages.md, the same as `exodaq export` up to its
+    # palm columns: joints by name, units in the names, no joint names in rows.
+    want = ["utime_us", "mono_ns", "seq", "run_id"]
+    for suffix in ("_rad", "_vel_rad_s", "_count", "_homed", "_flags"):
+        want += [j + suffix for j in NAMES]
+    want += ["sample_flags"]
+    if header != want:
+        fail("header %s, expected %s" % (header, want))
     col = {name: i for i, name in enumerate(header)}
-    for name in ("utime", "mono_ns", "seq", "run_id", "name_0", "position_5", "velocity_0",
-                 "raw_count_2", "homed_1", "flags_5", "sample_flags"):
-        if name not in col:
-            fail("column %s missing from header %s" % (name, header))
-    if len(header) != 4 + 6 * 6 + 1:
-        fail("joint_state_t has 41 columns, header has %d" % len(header))
     seqs = [int(row[col["seq"]]) for row in rows]
     if any(b <= a for a, b in zip(seqs, seqs[1:])):
         fail("seq not increasing: %s" % seqs)
     for row in rows:
         if len(row) != len(header):
             fail("row has %d values, header %d" % (len(row), len(header)))
+        if any(v == "-0" for v in row):
+            fail("a value printed as -0: %s" % row)
         k = int(row[col["seq"]]) - 4242424242
         checks = {
-            "utime": str(1700000000123456 + 1000 * k),
-            "run_id": str(-0x0123456789abcdef),
-            "name_3": "elbow_flexion",
-            "position_3": "-2.75",
-            "position_4": "0.1",  # shortest round-trip text
-            "raw_count_2": "123456789012",
-            "homed_1": "0",
-            "flags_2": str(2 | 64),
+            "utime_us": str(1700000000123456 + 1000 * k),
+            "run_id": "fedcba9876543211",  # -0x0123456789abcdef, 16 hex digits
+            "elbow_flexion_rad": "-2.75",
+            "wrist_pronation_rad": "0.1",  # shortest round-trip text
+            "shoulder_rotation_count": "123456789012",
+            "shoulder_flexion_homed": "0",
+            "shoulder_rotation_flags": str(2 | 64),
             "sample_flags": str(2 | 256),
         }
-        for name, want in checks.items():
-            if row[col[name]] != want:
-                fail("%s = %r, expected %r (row %s)" % (name, row[col[name]], want, row))
-    print("echo csv: header of %d columns, %d rows, seq %d..%d, values match" % (
+        for name, want_value in checks.items():
+            if row[col[name]] != want_value:
+                fail("%s = %r, expected %r (row %s)" % (name, row[col[name]], want_value, row))
+    print("echo csv: header of %d named columns, %d rows, seq %d..%d, values match" % (
         len(header), len(rows), seqs[0], seqs[-1]))
 
 
@@ -202,9 +211,65 @@ def run_echo_literal(fixture, url, tool):
     for row in rows[1:]:
         if row[col["rig"]] != "sim-rig, bench 2" or \
                 row[col["message"]] != 'joint 3 "elbow_flexion" stale' or \
-                row[col["state"]] != "3" or row[col["homing_4"]] != "2":
+                row[col["state"]] != "3" or row[col["wrist_pronation_homing"]] != "2" or \
+                row[col["run_id"]] != "fedcba9876543211":
             fail("status row wrong: %s" % row)
     print("echo literal channel: status_t recognised, CSV quoting round-trips")
+
+
+def run_echo_errors(fixture, url, tool):
+    """Issue 15 point 6: echo checks its writes. A full device, a closed
+    stdout and a full filesystem end it with exit 1 and the reason; -o FILE
+    appears whole when echo ends."""
+    prefix = unique_prefix("echo_errors")
+    base = tool + ["echo", "--url", url, "--prefix", prefix, "--duration", str(WAIT_S)]
+    with Publisher(fixture, url, prefix, "--vary-seq"):
+        for redirect, reason in (("> /dev/full", "No space left on device"),
+                                 (">&-", "Bad file descriptor")):
+            line = " ".join(base + ["--count", "20"]) + " " + redirect
+            r = subprocess.run(["/bin/sh", "-c", line], capture_output=True, text=True,
+                               timeout=WAIT_S + 20)
+            want = "exodaq echo: standard output: cannot write: %s\n" % reason
+            if r.returncode != 1 or r.stderr != want:
+                fail("echo %s: exit %d, stderr %r (want %r)" % (redirect, r.returncode,
+                                                                 r.stderr, want))
+        with tempfile.TemporaryDirectory(prefix="exodaq-echo-") as d:
+            out = os.path.join(d, "joints.csv")
+            r = run_tool(base, ["--count", "10", "-o", out])
+            if r.returncode != 0:
+                fail("echo -o: exit %d: %s" % (r.returncode, r.stderr))
+            lines = open(out).read().splitlines()
+            if len(lines) != 11 or not lines[0].startswith("utime_us,mono_ns,seq,run_id,"):
+                fail("echo -o wrote %d lines: %s" % (len(lines), lines[:2]))
+            if sorted(os.listdir(d)) != ["joints.csv"]:
+                fail("echo -o left %s" % os.listdir(d))
+            full = os.path.join(d, "full")
+            os.mkdir(full)
+            if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", full],
+                              capture_output=True).returncode != 0:
+                print("echo on a full filesystem: skipped (cannot mount a tmpfs: needs root)")
+            else:
+                try:
+                    # The reproduction: `echo > file` on a full disk exited 0
+                    # with part of the lines.
+                    line = " ".join(base + ["--count", "2000"]) + " > " + full + "/joints.csv"
+                    r = subprocess.run(["/bin/sh", "-c", line], capture_output=True, text=True,
+                                       timeout=WAIT_S + 40)
+                    want = "exodaq echo: standard output: cannot write: No space left on device\n"
+                    if r.returncode != 1 or r.stderr != want:
+                        fail("echo > full disk: exit %d, %r" % (r.returncode, r.stderr))
+                    os.remove(full + "/joints.csv")
+                    r = run_tool(base, ["--count", "2000", "-o", full + "/joints.csv"],
+                                 timeout=WAIT_S + 40)
+                    want = ("exodaq echo: %s/joints.csv: cannot write: No space left on device\n"
+                            % full)
+                    if r.returncode != 1 or r.stderr != want or os.listdir(full):
+                        fail("echo -o on a full disk: exit %d, %r, left %s"
+                             % (r.returncode, r.stderr, os.listdir(full)))
+                finally:
+                    subprocess.run(["umount", full])
+    print("echo: /dev/full, a closed stdout and a full filesystem exit 1 with the reason; "
+          "-o writes the whole file at the end")
 
 
 def run_echo_table(fixture, url, tool):
@@ -254,6 +319,24 @@ def run_status(fixture, url, tool):
     print("status: all expected fields present")
 
 
+def run_status_json(fixture, url, tool):
+    import json
+    prefix = unique_prefix("status_json")
+    with Publisher(fixture, url, prefix):
+        r = run_tool(tool, ["status", "--url", url, "--prefix", prefix, "--timeout", str(WAIT_S),
+                            "--json"])
+    if r.returncode != 0:
+        fail("status --json exited %d: %s" % (r.returncode, r.stderr))
+    s = json.loads(r.stdout)
+    want = {"channel": prefix + "EXO_STATUS", "rig": "sim-rig, bench 2", "state": 3,
+            "run_id": "fedcba9876543211", "overruns": 3, "clock_synchronised": 1,
+            "wrist_pronation_homing": 2}
+    for k, v in want.items():
+        if s.get(k) != v:
+            fail("status --json: %s = %r, expected %r" % (k, s.get(k), v))
+    print("status --json: one object in the CSV schema's names")
+
+
 def run_status_timeout(fixture, url, tool):
     prefix = unique_prefix("status_none")
     r = run_tool(tool, ["status", "--url", url, "--prefix", prefix, "--timeout", "0.5"])
@@ -280,7 +363,8 @@ def main(argv):
         run_subscribe(fixture, head[2], cmd, big)
     else:
         fn = {"echo-csv": run_echo_csv, "echo-literal": run_echo_literal,
-              "echo-table": run_echo_table, "status": run_status,
+              "echo-table": run_echo_table, "echo-errors": run_echo_errors,
+              "status": run_status, "status-json": run_status_json,
               "status-timeout": run_status_timeout}[mode]
         fn(fixture, head[2], cmd)
     return 0

@@ -2,14 +2,17 @@
 #include "exodaq/messages/subscriber.hpp"
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/messages/channels.hpp"
-#include "exodaq/messages/fields.hpp"
+#include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/flag_names.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <numbers>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -74,48 +77,155 @@ TEST(Subscriber, DecodeRejectsWrongTypeAndTruncation) {
   EXPECT_FALSE(msg::decode(msg::Kind::kPalmPose, b.data(), b.size() - 1).has_value());
 }
 
-TEST(Subscriber, FieldsFlattenArraysInDeclarationOrder) {
-  exodaq::joint_state_t j{};
-  j.seq = -5;
-  j.name[0] = "a,b";
-  j.position[5] = 0.1;
-  j.homed[1] = 1;
-  j.flags[4] = 16;
-  const auto f = msg::fields(j);
-  const auto names = msg::field_names(msg::Kind::kJointState);
-  ASSERT_EQ(f.size(), names.size());
-  ASSERT_EQ(f.size(), 41u);
-  EXPECT_EQ(f[0].name, "utime");
-  EXPECT_EQ(f[2].name, "seq");
-  EXPECT_EQ(f[2].value, "-5");
-  EXPECT_EQ(f[4].name, "name_0");
-  EXPECT_EQ(f[4].value, "a,b");
-  EXPECT_EQ(f[15].name, "position_5");
-  EXPECT_EQ(f[15].value, "0.1");
-  EXPECT_EQ(f[29].name, "homed_1");
-  EXPECT_EQ(f[29].value, "1");
-  EXPECT_EQ(f[38].name, "flags_4");
-  EXPECT_EQ(f[38].value, "16");
-  EXPECT_EQ(f[40].name, "sample_flags");
-  EXPECT_EQ(msg::field_names(msg::Kind::kPalmPose).size(), 4u + 2 + 3 + 4 + 3 + 3);
-  EXPECT_EQ(msg::field_names(msg::Kind::kEncoderRaw).size(), 4u + 2 + 12 + 6);
-  EXPECT_EQ(msg::field_names(msg::Kind::kStatus).size(), 4u + 3 + 13 + 11 + 6 + 7 * 6);
+// The one CSV schema (docs/messages.md "CSV"), golden: a change here is a
+// change of what every lab script reads, and of docs/messages.md.
+const std::string kNames[6] = {"shoulder_azimuth",  "shoulder_abduction", "shoulder_flexion",
+                               "shoulder_rotation", "elbow_flexion",      "forearm_pronation"};
+
+std::string joined(const std::vector<std::string>& v) {
+  return msg::csv::line(v);
 }
 
-TEST(Subscriber, DoublesAreExactAndShort) {
-  EXPECT_EQ(msg::format_double(0.1), "0.1");
-  EXPECT_EQ(msg::format_double(-2.75), "-2.75");
-  EXPECT_EQ(msg::format_double(1e-6), "1e-06");
-  EXPECT_EQ(std::stod(msg::format_double(std::numbers::pi)), std::numbers::pi);
-  EXPECT_EQ(msg::format_double(std::numeric_limits<double>::quiet_NaN()), "nan");
-  EXPECT_EQ(msg::format_double(-std::numeric_limits<double>::infinity()), "-inf");
+TEST(CsvSchema, GoldenCycleHeader) {
+  const auto h = msg::csv::cycle_header(msg::csv::joint_columns(kNames));
+  EXPECT_EQ(joined(h),
+            "utime_us,mono_ns,seq,run_id,"
+            "shoulder_azimuth_rad,shoulder_abduction_rad,shoulder_flexion_rad,"
+            "shoulder_rotation_rad,elbow_flexion_rad,forearm_pronation_rad,"
+            "shoulder_azimuth_vel_rad_s,shoulder_abduction_vel_rad_s,shoulder_flexion_vel_rad_s,"
+            "shoulder_rotation_vel_rad_s,elbow_flexion_vel_rad_s,forearm_pronation_vel_rad_s,"
+            "shoulder_azimuth_count,shoulder_abduction_count,shoulder_flexion_count,"
+            "shoulder_rotation_count,elbow_flexion_count,forearm_pronation_count,"
+            "shoulder_azimuth_homed,shoulder_abduction_homed,shoulder_flexion_homed,"
+            "shoulder_rotation_homed,elbow_flexion_homed,forearm_pronation_homed,"
+            "shoulder_azimuth_flags,shoulder_abduction_flags,shoulder_flexion_flags,"
+            "shoulder_rotation_flags,elbow_flexion_flags,forearm_pronation_flags,"
+            "sample_flags,"
+            "palm_x_m,palm_y_m,palm_z_m,palm_qw,palm_qx,palm_qy,palm_qz,"
+            "elbow_x_m,elbow_y_m,elbow_z_m,manipulability,manipulability_raw,near_singular,"
+            "palm_valid,palm_invalid_reason");
 }
 
-TEST(Subscriber, CsvQuotesOnlyWhenNeeded) {
-  EXPECT_EQ(msg::csv_escape("plain"), "plain");
-  EXPECT_EQ(msg::csv_escape("a,b"), "\"a,b\"");
-  EXPECT_EQ(msg::csv_escape("say \"hi\""), "\"say \"\"hi\"\"\"");
-  EXPECT_EQ(msg::csv_line({"1", "x,y", ""}), "1,\"x,y\",");
+// docs/messages.md "CSV" shows the same header, so the page cannot drift.
+TEST(CsvSchema, MessagesMdShowsTheCycleHeader) {
+  std::ifstream in(std::string(EXODAQ_SOURCE_DIR) + "/docs/messages.md");
+  std::stringstream doc;
+  doc << in.rdbuf();
+  const std::string header = joined(msg::csv::cycle_header(msg::csv::joint_columns(kNames)));
+  EXPECT_NE(doc.str().find("\n" + header + "\n"), std::string::npos)
+      << "docs/messages.md does not show:\n"
+      << header;
+}
+
+TEST(CsvSchema, GoldenHeadersOfEachKind) {
+  const auto j = msg::csv::joint_columns(kNames);
+  const auto joint = msg::csv::header(msg::Kind::kJointState, j);
+  const auto cycle = msg::csv::cycle_header(j);
+  // echo's joint_state_t columns are export's, up to the palm columns.
+  ASSERT_LT(joint.size(), cycle.size());
+  EXPECT_TRUE(std::equal(joint.begin(), joint.end(), cycle.begin()));
+  EXPECT_EQ(joint.back(), "sample_flags");
+  // echo's palm_pose_t columns are export's palm columns, after the header.
+  const auto palm = msg::csv::header(msg::Kind::kPalmPose, j);
+  EXPECT_EQ(joined(palm),
+            "utime_us,mono_ns,seq,run_id,palm_x_m,palm_y_m,palm_z_m,palm_qw,palm_qx,palm_qy,"
+            "palm_qz,elbow_x_m,elbow_y_m,elbow_z_m,manipulability,manipulability_raw,"
+            "near_singular,palm_valid,palm_invalid_reason");
+  EXPECT_TRUE(std::equal(palm.begin() + 4, palm.end(), cycle.begin() + joint.size()));
+  EXPECT_EQ(joined(msg::csv::header(msg::Kind::kEncoderRaw, j)),
+            "utime_us,mono_ns,seq,run_id,present,board_seq,count16_ch0,count16_ch1,count16_ch2,"
+            "count16_ch3,count16_ch4,count16_ch5,index_count16_ch0,index_count16_ch1,"
+            "index_count16_ch2,index_count16_ch3,index_count16_ch4,index_count16_ch5,"
+            "index_latched,index_count_valid,board_state,board_errors,source_flags,wall_ns");
+  const auto status = msg::csv::header(msg::Kind::kStatus, j);
+  EXPECT_EQ(status.size(), 4u + 4 + 9 + 20 + 6 * 6);
+  EXPECT_EQ(status[4], "rig");
+  EXPECT_EQ(status[37], "shoulder_azimuth_homing");
+  EXPECT_EQ(status.back(), "forearm_pronation_out_of_range_events");
+  // Every kind: no name twice in one row.
+  for (const auto k : msg::kAllKinds) {
+    auto h = msg::csv::header(k, j);
+    std::sort(h.begin(), h.end());
+    EXPECT_EQ(std::adjacent_find(h.begin(), h.end()), h.end());
+  }
+}
+
+TEST(CsvSchema, ValuesFollowTheHeader) {
+  exodaq::joint_state_t js{};
+  js.utime = 1700000000123456;
+  js.mono_ns = 5;
+  js.seq = -5;
+  js.run_id = 0x0123456789abcdefLL;
+  for (int i = 0; i < 6; ++i) js.name[i] = kNames[i];
+  js.position[5] = 0.1;
+  js.velocity[0] = -0.0;  // no "-0"
+  js.homed[1] = 1;
+  js.flags[4] = 16;
+  exodaq::palm_pose_t p{};
+  p.position[2] = -0.297;
+  p.valid = 1;
+  std::vector<std::string> v;
+  msg::csv::append_cycle(js, &p, v);
+  const auto h = msg::csv::cycle_header(msg::csv::joints_of(msg::Message{js}));
+  ASSERT_EQ(v.size(), h.size());
+  const auto at = [&](const std::string& name) {
+    return v[static_cast<std::size_t>(std::find(h.begin(), h.end(), name) - h.begin())];
+  };
+  EXPECT_EQ(at("utime_us"), "1700000000123456");
+  EXPECT_EQ(at("seq"), "-5");
+  EXPECT_EQ(at("run_id"), "0123456789abcdef");
+  EXPECT_EQ(at("forearm_pronation_rad"), "0.1");
+  EXPECT_EQ(at("shoulder_azimuth_vel_rad_s"), "0");
+  EXPECT_EQ(at("shoulder_abduction_homed"), "1");
+  EXPECT_EQ(at("elbow_flexion_flags"), "16");
+  EXPECT_EQ(at("palm_z_m"), "-0.297");
+  EXPECT_EQ(at("palm_valid"), "1");
+  // Without a palm message the palm columns are empty.
+  v.clear();
+  msg::csv::append_cycle(js, nullptr, v);
+  ASSERT_EQ(v.size(), h.size());
+  EXPECT_EQ(at("palm_x_m"), "");
+  EXPECT_EQ(at("palm_invalid_reason"), "");
+  // Joint names that are not column-safe.
+  const std::string odd[6] = {"a b", "", "x", "x", "é", "ok"};
+  const auto c = msg::csv::joint_columns(odd);
+  EXPECT_EQ(c[0], "a_b");
+  EXPECT_EQ(c[1], "joint2");
+  EXPECT_EQ(c[2], "x");
+  EXPECT_EQ(c[3], "joint4");
+  EXPECT_EQ(c[4], "__");
+  EXPECT_EQ(c[5], "ok");
+}
+
+TEST(CsvSchema, RunIdHasOneSpelling) {
+  EXPECT_EQ(msg::run_id_text(0x5eed), "0000000000005eed");
+  EXPECT_EQ(msg::run_id_text(-0x0123456789abcdefLL), "fedcba9876543211");
+  EXPECT_EQ(msg::parse_run_id("fedcba9876543211"), -0x0123456789abcdefLL);
+  EXPECT_EQ(msg::parse_run_id("0000000000005EED"), 0x5eed);
+  EXPECT_FALSE(msg::parse_run_id("5eed").has_value());
+  EXPECT_FALSE(msg::parse_run_id("000000000000xeed").has_value());
+}
+
+TEST(CsvSchema, NumbersAreExactShortAndNeverMinusZero) {
+  EXPECT_EQ(msg::csv::number(0.1), "0.1");
+  EXPECT_EQ(msg::csv::number(-2.75), "-2.75");
+  EXPECT_EQ(msg::csv::number(1e-6), "1e-06");
+  EXPECT_EQ(msg::csv::number(-0.0), "0");
+  EXPECT_EQ(msg::csv::number(-0.297), "-0.297");
+  EXPECT_EQ(std::stod(msg::csv::number(std::numbers::pi)), std::numbers::pi);
+  EXPECT_EQ(msg::csv::number(std::numeric_limits<double>::quiet_NaN()), "nan");
+  EXPECT_EQ(msg::csv::number(-std::numeric_limits<double>::infinity()), "-inf");
+}
+
+TEST(CsvSchema, QuotesOnlyWhenNeededAndSplitsBack) {
+  EXPECT_EQ(msg::csv::escape("plain"), "plain");
+  EXPECT_EQ(msg::csv::escape("a,b"), "\"a,b\"");
+  EXPECT_EQ(msg::csv::escape("say \"hi\""), "\"say \"\"hi\"\"\"");
+  EXPECT_EQ(msg::csv::line({"1", "x,y", ""}), "1,\"x,y\",");
+  std::vector<std::string> back;
+  ASSERT_TRUE(msg::csv::split("1,\"x,y\",,\"say \"\"hi\"\"\"", back));
+  EXPECT_EQ(back, (std::vector<std::string>{"1", "x,y", "", "say \"hi\""}));
+  EXPECT_FALSE(msg::csv::split("\"open", back));
 }
 
 TEST(Subscriber, FlagNames) {

@@ -15,6 +15,8 @@
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/messages/lcm_log.hpp"
+#include "exodaq/messages/message.hpp"
+#include "sample_messages.hpp"
 
 namespace can = exodaq::drivers::can;
 namespace fs = std::filesystem;
@@ -53,31 +55,12 @@ Buf frame_input(unsigned selector, const can::CanFrame& f) {
 }
 
 exodaq::encoder_raw_t raw_message(std::int64_t seq) {
-  exodaq::encoder_raw_t m{};
-  m.utime = 1'700'000'000'000'000 + seq * 1000;
-  m.mono_ns = 5'000'000'000 + seq * 1'000'000;
-  m.seq = seq;
-  m.run_id = 0x1234;
-  m.present = 1;
-  m.board_seq = static_cast<std::int16_t>(seq & 0xFF);
-  for (int c = 0; c < 6; ++c) {
-    m.count16[c] = static_cast<std::int16_t>(100 * c + seq);
-    m.index_count16[c] = 0;
-  }
-  m.index_latched = 0;
-  m.index_count_valid = 0;
-  m.board_state = 1;
-  m.board_errors = 0;
-  m.source_flags = 0;
-  m.wall_ns = m.utime * 1000;
-  return m;
+  return exodaq::test::raw_message(seq, 0x1234);
 }
 
 template <typename T>
 Buf encoded(const T& m) {
-  Buf b(static_cast<std::size_t>(m.getEncodedSize()));
-  m.encode(b.data(), 0, static_cast<int>(b.size()));
-  return b;
+  return exodaq::msg::encode(m);
 }
 
 void write_lcm_log(const fs::path& path, const std::vector<std::pair<std::string, Buf>>& events) {

@@ -8,6 +8,9 @@
 namespace exodaq::test {
 
 inline const std::string kLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
+// Subscribers in tests (recorders, lcm-logger): a 4 MiB socket buffer, so a
+// busy test machine does not make the kernel drop what the daemon sent.
+inline const std::string kRecordUrl = kLcmUrl + "&recv_buf_size=4194304";
 
 // config/sim.yaml with absolute model and calibration paths, a private channel
 // prefix and, where the system allows it (root), SCHED_FIFO for the loop

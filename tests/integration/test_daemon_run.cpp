@@ -50,11 +50,12 @@ const DaemonRecording& the_run() {
     r.dir = test::make_temp_dir("e2e");
     r.prefix = test::unique_prefix("e2e");
     r.config = test::write_sim_config(r.dir, r.prefix);
-    test::Process recorder({EXODAQ_RECORDER, kUrl, r.prefix + ".*", r.dir + "/recorder.bin"}, "",
-                           r.dir + "/recorder.err");
-    test::Process logger({"lcm-logger", "--lcm-url=" + kUrl, "--channel=" + r.prefix + ".*", "-f",
-                          r.dir + "/run.lcm"},
-                         r.dir + "/logger.out", r.dir + "/logger.err");
+    test::Process recorder(
+        {EXODAQ_RECORDER, test::kRecordUrl, r.prefix + ".*", r.dir + "/recorder.bin"}, "",
+        r.dir + "/recorder.err");
+    test::Process logger(
+        test::lcm_logger_argv(test::kRecordUrl, r.prefix + ".*", r.dir + "/run.lcm"),
+        r.dir + "/logger.out", r.dir + "/logger.err");
     std::this_thread::sleep_for(500ms);  // both subscribed before the first message
     {
       test::Process daemon({EXODAQD, "--config", r.config}, r.dir + "/daemon.out",

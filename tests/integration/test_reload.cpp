@@ -47,8 +47,8 @@ TEST(Reload, SighupAppliesANewCalibrationWithoutAGapAndRejectsABadOne) {
   // The rig as it started (its motion depends on the index angles): the truth.
   const auto rig_config = config::load_service_config(config);
   test::Process recorder(
-      {EXODAQ_RECORDER, test::kLcmUrl, prefix + "EXO_(JOINT_STATE|STATUS)", dir + "/rec.bin"}, "",
-      dir + "/rec.err");
+      {EXODAQ_RECORDER, test::kRecordUrl, prefix + "EXO_(JOINT_STATE|STATUS)", dir + "/rec.bin"},
+      "", dir + "/rec.err");
   std::this_thread::sleep_for(300ms);
   test::Process daemon({EXODAQD, "--config", config}, dir + "/d.out", dir + "/d.err");
   std::this_thread::sleep_for(2000ms);  // joint 1 homes at ~0.95 s

@@ -285,7 +285,7 @@ def analyse(a, work, receivers, summaries, log_path, exodaq_rc, memberships, lab
 
 def check_export(c, a, work, log_path, joint_seqs):
     out = os.path.join(work, "rec", "export.csv")
-    r = subprocess.run([a.exodaq, "export", log_path, "--csv", out, "--prefix", a.prefix],
+    r = subprocess.run([a.exodaq, "export", log_path, "-o", out, "--prefix", a.prefix],
                        capture_output=True, text=True)
     rows = []
     if r.returncode == 0 and os.path.exists(out):

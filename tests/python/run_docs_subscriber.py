@@ -115,9 +115,17 @@ def write_config(args, tmp, url, prefix):
     return path
 
 
+JOINTS = []  # the joint column stems of echo's CSV (docs/messages.md "CSV")
+
+
 def echo_rows(text, what):
-    rows = list(csv.DictReader(io.StringIO(text)))
+    reader = csv.DictReader(io.StringIO(text))
+    rows = list(reader)
     check(rows, "exodaq echo recorded no %s" % what)
+    if what == "joint_state":
+        JOINTS[:] = [n[:-len("_rad")] for n in reader.fieldnames
+                     if n.endswith("_rad") and not n.endswith("_vel_rad_s")]
+        check(len(JOINTS) == 6, "echo's joint_state header %s" % reader.fieldnames)
     return {int(r["seq"]): r for r in rows}
 
 
@@ -156,13 +164,14 @@ def check_joints(joints, echo, bits, sample_bits):
             continue
         matched += 1
         for i in range(6):
-            rad = float(row["position_%d" % i])
+            j = JOINTS[i]
+            rad = float(row[j + "_rad"])
             check(abs(deg[i] - math.degrees(rad)) <= 0.0005 + 1e-9,
                   "seq %d joint %d: %.3f deg printed, C++ decoded %r rad" % (seq, i, deg[i], rad))
-            flags = int(row["flags_%d" % i])
-            want_usable = row["homed_%d" % i] == "1" and flags == 0
+            flags = int(row[j + "_flags"])
+            want_usable = row[j + "_homed"] == "1" and flags == 0
             check((usable[i] == "1") == want_usable, "seq %d joint %d: usable %s, C++ homed %s flags %d"
-                  % (seq, i, usable[i], row["homed_%d" % i], flags))
+                  % (seq, i, usable[i], row[j + "_homed"], flags))
             check(set(flag_names[i].split("|")) == names_of(flags, bits),
                   "seq %d joint %d: flags named %r, C++ flags %d" % (seq, i, flag_names[i], flags))
         sf = int(row["sample_flags"])
@@ -184,12 +193,13 @@ def check_palms(palms, joints, echo, reason_bits):
         if row is None:
             continue
         matched += 1
-        check(valid == (row["valid"] == "1"), "seq %d: valid %s, C++ %s" % (seq, valid, row["valid"]))
-        for k in range(3):
-            m = 1e3 * float(row["position_%d" % k])
+        check(valid == (row["palm_valid"] == "1"), "seq %d: valid %s, C++ %s"
+              % (seq, valid, row["palm_valid"]))
+        for k, axis in enumerate("xyz"):
+            m = 1e3 * float(row["palm_%s_m" % axis])
             check(abs(mm[k] - m) <= 0.0005 + 1e-9, "seq %d palm %d: %.3f mm printed, C++ %r mm"
                   % (seq, k, mm[k], m))
-        r = int(row["invalid_reason"])
+        r = int(row["palm_invalid_reason"])
         check(set(reason.split("|")) == names_of(r, reason_bits),
               "seq %d: reason named %r, C++ %d" % (seq, reason, r))
     return matched

@@ -10,22 +10,30 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <numbers>
 #include <sstream>
 #include <thread>
 
+#include "exodaq/calibration/marker_layout.hpp"
+#include "exodaq/calibration/solver.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
+#include "exodaq/messages/csv.hpp"
+#include "exodaq/messages/message.hpp"
 #include "exodaq/palm_pose_t.hpp"
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
 #include "replay_support.hpp"
+#include "synthetic.hpp"
 
 namespace exodaq::test {
 namespace {
+
+namespace cal = exodaq::calibration;
 
 constexpr std::int32_t kSampleReplay = 1024;  // joint_state_t::SAMPLE_REPLAY
 constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
@@ -65,8 +73,8 @@ class ReplayLive : public ::testing::Test {
     live->config = write_sim_config(live->dir, live->prefix);
     live->log = live->dir + "/live.lcm";
     {
-      Process logger({"lcm-logger", std::string("--lcm-url=") + kUrl, "-c", live->prefix + ".*",
-                      "-q", "-f", live->log},
+      Process logger(lcm_logger_argv(std::string(kUrl) + "&recv_buf_size=4194304",
+                                     live->prefix + ".*", live->log),
                      live->dir + "/logger.out", live->dir + "/logger.err");
       ASSERT_TRUE(wait_for_file(live->log, std::chrono::seconds(5))) << "lcm-logger did not start";
       std::this_thread::sleep_for(std::chrono::milliseconds(300));
@@ -235,7 +243,7 @@ std::vector<std::vector<std::string>> read_csv(const std::string& path) {
 
 TEST_F(ReplayLive, ExportHasOneRowPerCycleWithTheLogsValues) {
   const std::string csv = g_live->dir + "/cycles.csv";
-  const RunResult r = exodaq({"export", g_live->replay, "--csv", csv});
+  const RunResult r = exodaq({"export", g_live->replay, "-o", csv});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   const auto rows = read_csv(csv);
   const auto log = read_log(g_live->replay);
@@ -244,9 +252,12 @@ TEST_F(ReplayLive, ExportHasOneRowPerCycleWithTheLogsValues) {
   ASSERT_EQ(rows.size(), joints.size() + 1);  // + header
   std::map<std::string, std::size_t> col;
   for (std::size_t i = 0; i < rows[0].size(); ++i) col[rows[0][i]] = i;
-  for (const char* name :
-       {"seq", "utime", "position_0", "velocity_5", "homed_3", "flags_2", "sample_flags", "palm_x",
-        "quat_w", "elbow_z", "manipulability", "valid", "invalid_reason"}) {
+  const auto& j0 = joints.begin()->second;
+  // The schema of docs/messages.md: joints by name, units in the names.
+  ASSERT_EQ(rows[0][0], "utime_us");
+  for (const std::string name :
+       {"seq", "run_id", "mono_ns", "sample_flags", "palm_x_m", "palm_qw", "elbow_z_m",
+        "manipulability", "palm_valid", "palm_invalid_reason"}) {
     ASSERT_EQ(col.count(name), 1U) << name;
   }
   std::size_t i = 1;
@@ -254,33 +265,88 @@ TEST_F(ReplayLive, ExportHasOneRowPerCycleWithTheLogsValues) {
     const auto& row = rows[i++];
     ASSERT_EQ(row.size(), rows[0].size());
     ASSERT_EQ(std::stoll(row[col["seq"]]), seq);
-    EXPECT_EQ(std::stoll(row[col["utime"]]), j.utime);
+    EXPECT_EQ(std::stoll(row[col["utime_us"]]), j.utime);
+    ASSERT_EQ(row[col["run_id"]], msg::run_id_text(j.run_id));
     for (int k = 0; k < 6; ++k) {
-      // Exact: the shortest text that reads back to the same double.
-      ASSERT_EQ(std::strtod(row[col["position_" + std::to_string(k)]].c_str(), nullptr),
-                j.position[k]);
-      ASSERT_EQ(std::strtod(row[col["velocity_" + std::to_string(k)]].c_str(), nullptr),
-                j.velocity[k]);
-      ASSERT_EQ(row[col["homed_" + std::to_string(k)]], j.homed[k] ? "1" : "0");
-      ASSERT_EQ(std::stoi(row[col["flags_" + std::to_string(k)]]), j.flags[k]);
+      const std::string n = j0.name[k];
+      // Exact: the shortest text that reads back to the same double; no "-0".
+      ASSERT_EQ(std::strtod(row[col[n + "_rad"]].c_str(), nullptr), j.position[k]);
+      ASSERT_EQ(std::strtod(row[col[n + "_vel_rad_s"]].c_str(), nullptr), j.velocity[k]);
+      ASSERT_NE(row[col[n + "_vel_rad_s"]], "-0");
+      ASSERT_EQ(row[col[n + "_homed"]], j.homed[k] ? "1" : "0");
+      ASSERT_EQ(std::stoi(row[col[n + "_flags"]]), j.flags[k]);
+      ASSERT_EQ(std::stoll(row[col[n + "_count"]]), j.raw_count[k]);
     }
     ASSERT_EQ(std::stoi(row[col["sample_flags"]]), j.sample_flags);
     const palm_pose_t& p = palms.at(seq);
-    ASSERT_EQ(std::strtod(row[col["palm_x"]].c_str(), nullptr), p.position[0]);
-    ASSERT_EQ(std::strtod(row[col["quat_w"]].c_str(), nullptr), p.orientation[0]);
-    ASSERT_EQ(std::strtod(row[col["elbow_z"]].c_str(), nullptr), p.elbow[2]);
+    ASSERT_EQ(std::strtod(row[col["palm_x_m"]].c_str(), nullptr), p.position[0]);
+    ASSERT_EQ(std::strtod(row[col["palm_qw"]].c_str(), nullptr), p.orientation[0]);
+    ASSERT_EQ(std::strtod(row[col["elbow_z_m"]].c_str(), nullptr), p.elbow[2]);
     ASSERT_EQ(std::strtod(row[col["manipulability"]].c_str(), nullptr), p.shoulder_manipulability);
-    ASSERT_EQ(row[col["valid"]], p.valid ? "1" : "0");
-    ASSERT_EQ(std::stoi(row[col["invalid_reason"]]), p.invalid_reason);
+    ASSERT_EQ(row[col["palm_valid"]], p.valid ? "1" : "0");
+    ASSERT_EQ(std::stoi(row[col["palm_invalid_reason"]]), p.invalid_reason);
   }
+  // The same bytes to standard output (-o -, the default).
+  const RunResult piped = exodaq({"export", g_live->replay, "-q"});
+  ASSERT_EQ(piped.exit_code, 0) << piped.err;
+  EXPECT_EQ(piped.out, read_text(csv));
+  EXPECT_EQ(piped.err, "");
+}
+
+// Issue 15 point 8: a damaged log exports what can be read, exits 1 and
+// names the damaged bytes; garbage after the last good event loses nothing.
+TEST_F(ReplayLive, ExportOfADamagedLogNamesTheBytesAndKeepsEveryGoodEvent) {
+  const std::string good = read_text(g_live->replay);
+  const std::string reference = g_live->dir + "/reference.csv";
+  ASSERT_EQ(exodaq({"export", g_live->replay, "-o", reference}).exit_code, 0);
+  const auto ref_rows = read_csv(reference);
+
+  const std::string tail = g_live->dir + "/garbage-appended.lcm";
+  write_text(tail, good + std::string("\xde\xad\xbe\xef garbage after the last event", 35));
+  const std::string tail_csv = g_live->dir + "/garbage-appended.csv";
+  RunResult r = exodaq({"export", tail, "-o", tail_csv});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  const std::string range = "bytes " + std::to_string(good.size()) + ".." +
+                            std::to_string(good.size() + 35) + ": damaged or cut at the end";
+  EXPECT_NE(r.err.find("exodaq export: " + tail + ", " + range), std::string::npos) << r.err;
+  EXPECT_EQ(read_text(tail_csv), read_text(reference));  // every good event kept
+
+  // Bytes overwritten in the middle: the rows around them stay, the damaged
+  // stretch is named.
+  std::string mid = good;
+  std::int64_t at = 0;  // the header of the first joint state past the middle
+  {
+    msg::LogReader reader(g_live->replay);
+    msg::LogEvent ev;
+    while (reader.next(ev) && (ev.offset < static_cast<std::int64_t>(mid.size() / 2) ||
+                               ev.channel != g_live->prefix + "EXO_JOINT_STATE")) {
+    }
+    at = ev.offset;
+  }
+  for (std::size_t k = 0; k < 64; ++k) mid[static_cast<std::size_t>(at) + k] = 'x';
+  const std::string mid_log = g_live->dir + "/damaged-middle.lcm";
+  write_text(mid_log, mid);
+  const std::string mid_csv = g_live->dir + "/damaged-middle.csv";
+  r = exodaq({"export", mid_log, "-o", mid_csv});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find(mid_log + ", bytes " + std::to_string(at) + ".."), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find(": damaged after event"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("those bytes were not read"), std::string::npos) << r.err;
+  // That cycle's joint state is lost (its row with it), nothing else.
+  EXPECT_EQ(read_csv(mid_csv).size() + 1, ref_rows.size());
 }
 
 // --- plot -------------------------------------------------------------------
 
 TEST_F(ReplayLive, PlotWritesOneNonEmptyPngPerPanel) {
-  const std::string dir = g_live->dir + "/plots";
-  const RunResult r = exodaq({"plot", g_live->replay, "--out", dir});
+  const std::string dir = g_live->dir + "/plots/";
+  const RunResult r = exodaq({"plot", g_live->replay, "-o", dir, "-c", g_live->config});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  // Paths as the user would type them (not "plots//x.png").
+  EXPECT_NE(r.out.find(g_live->dir + "/plots/joint_trajectories.png\n"), std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find("//"), std::string::npos) << r.out;
   for (const char* f :
        {"joint_trajectories.png", "palm_path_3d.png", "shoulder_manipulability.png"}) {
     const std::string path = dir + "/" + f;
@@ -288,6 +354,169 @@ TEST_F(ReplayLive, PlotWritesOneNonEmptyPngPerPanel) {
     EXPECT_EQ(read_text(path).substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8)) << path;
   }
   EXPECT_GT(file_size(dir + "/cycles.csv"), 0);
+}
+
+// --- calibrate from the recording (issue 16 point 2) -------------------------
+
+// Markers synthesised from the recorded joint angles: θᴿ = position − the sim
+// calibration's offsets (the sim puts each index at those angles), the
+// markers of config/calibration/markers_example.yaml through forward
+// kinematics with a known calibration (seed 000 Table 4 "Results") every 10th
+// cycle in which all six joints are homed and unflagged and the sample is there.
+struct Markers {
+  std::string csv;
+  std::string bounds;
+  cal::ParamVector truth{};
+  std::size_t rows = 0;
+};
+
+// config/calibration/bounds_seed000.yaml with every parameter but the six
+// encoder offsets held at the truth. The offsets are what reading the
+// recording decides (θᴿ = recorded angle − the recording's Δθ⁰); the few
+// seconds of motion after the sim's homing do not identify all 20 parameters
+// together (calibrate says which it holds, and which follow that choice), but
+// with the others held every offset must come back exactly.
+std::string bounds_holding_all_but_offsets(const std::string& dir, const cal::ParamVector& truth) {
+  std::string text =
+      read_text(std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/bounds_seed000.yaml");
+  for (int p = cal::kTheta1 + 6; p < cal::kParams; ++p) {
+    const std::string key = cal::param_key(p);
+    const std::size_t at = text.find("\n  " + key + ": {initial: ");
+    EXPECT_NE(at, std::string::npos) << key;
+    const std::size_t end = text.find('}', at);
+    const std::size_t comma = text.find(',', at);
+    text = text.substr(0, at) + "\n  " + key +
+           ": {initial: " + msg::csv::number(cal::to_display(p, truth[p])) +
+           text.substr(comma, end - comma) + ", fixed: true" + text.substr(end);
+  }
+  const std::string path = dir + "/bounds.yaml";
+  write_text(path, text);
+  return path;
+}
+
+Markers synthesise_markers(const std::string& dir) {
+  Markers m;
+  m.truth = cal::synth::table4_results();
+  const config::ServiceConfig cfg = config::load_service_config(g_live->config);
+  const cal::NominalModel model = cal::nominal_from_chain(cfg.model.chain);
+  const cal::MarkerLayout layout = cal::load_marker_layout_file(
+      std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/markers_example.yaml");
+  // The recording's angles as the replay computes them from its raw channel:
+  // the live ones exactly when the logger lost nothing (the first test), and
+  // what `calibrate -c` computes from the same recording either way.
+  const auto joints =
+      messages_by_seq<joint_state_t>(read_log(g_live->replay), g_live->prefix + "EXO_JOINT_STATE");
+  std::ostringstream out;
+  out << "utime_us,x_mm,y_mm,z_mm,marker_id\n";
+  out.precision(12);
+  std::int64_t k = 0;
+  for (const auto& [seq, j] : joints) {
+    bool clean = (j.sample_flags & joint_state_t::SAMPLE_MISSING) == 0;
+    for (int i = 0; i < 6; ++i) clean = clean && j.homed[i] && j.flags[i] == 0;
+    if (!clean || k++ % 10 != 0) continue;
+    std::array<double, 6> theta_r{};
+    for (int i = 0; i < 6; ++i) {
+      theta_r[static_cast<std::size_t>(i)] =
+          j.position[i] - cfg.calibration.encoder_offset_rad[static_cast<std::size_t>(i)];
+    }
+    for (const cal::MarkerSite& site : layout.sites) {
+      const Eigen::Vector3d p = cal::predict_marker(model, m.truth, theta_r, site);
+      out << j.utime << "," << p.x() * 1e3 << "," << p.y() * 1e3 << "," << p.z() * 1e3 << ","
+          << site.id << "\n";
+      ++m.rows;
+    }
+  }
+  m.csv = dir + "/markers.csv";
+  write_text(m.csv, out.str());
+  m.bounds = bounds_holding_all_but_offsets(dir, m.truth);
+  return m;
+}
+
+// Runs exodaq calibrate on `encoders` and returns the written calibration.
+config::Calibration calibrate(const std::string& encoders, const Markers& m,
+                              const std::vector<std::string>& extra, const std::string& out) {
+  const std::string src = EXODAQ_SOURCE_DIR;
+  std::vector<std::string> args{"calibrate",
+                                "--encoders",
+                                encoders,
+                                "--markers",
+                                m.csv,
+                                "--bounds",
+                                m.bounds,
+                                "--marker-layout",
+                                src + "/config/calibration/markers_example.yaml",
+                                "--max-points",
+                                "150",
+                                "-q",
+                                "-o",
+                                out};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const RunResult r = exodaq(args);
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  return config::load_calibration_file(out);
+}
+
+void expect_truth(const config::Calibration& c, const cal::ParamVector& truth,
+                  const std::string& what) {
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  for (int j = 0; j < 6; ++j) {
+    // Noise-free markers: the offsets come back to within a thousandth of a degree.
+    EXPECT_NEAR(c.encoder_offset_rad[static_cast<std::size_t>(j)], truth[cal::kTheta1 + j],
+                0.001 * kDeg)
+        << what << ": joint " << j + 1;
+  }
+  ASSERT_TRUE(c.provenance.rms_after_m.has_value());
+  EXPECT_LT(*c.provenance.rms_after_m, 1e-6) << what;
+}
+
+TEST_F(ReplayLive, CalibrateReadsTheRecordingAndFindsTheKnownCalibration) {
+  const std::string dir = g_live->dir + "/calibrate";
+  std::filesystem::create_directories(dir);
+  const Markers m = synthesise_markers(dir);
+  ASSERT_GT(m.rows, 5U * 300);
+  const std::string sim_cal = std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/sim.yaml";
+
+  // The lcm-logger recording, raw channel re-processed with the config.
+  expect_truth(calibrate(g_live->log, m, {"-c", g_live->config}, dir + "/from-raw.yaml"), m.truth,
+               "LCM log, raw channel");
+  // Joint states (the replay's log of the recording), less the calibration
+  // they were computed with.
+  expect_truth(calibrate(g_live->replay, m, {"--recorded-calibration", sim_cal},
+                         dir + "/from-joint-states.yaml"),
+               m.truth, "LCM log, joint states");
+  // The CSV of exodaq export, with the config (its calibration).
+  const std::string csv = dir + "/export.csv";
+  ASSERT_EQ(exodaq({"export", g_live->replay, "-o", csv, "-q"}).exit_code, 0);
+  expect_truth(calibrate(csv, m, {"-c", g_live->config}, dir + "/from-export.yaml"), m.truth,
+               "export CSV");
+
+  // The wrong recorded calibration (nominal: zero offsets, the sim's are up to
+  // 93 degrees): no fit at all, said so (it crashed in the identifiability
+  // analysis before).
+  const RunResult wrong =
+      exodaq({"calibrate", "--encoders", g_live->replay, "--recorded-calibration",
+              std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/nominal.yaml", "--markers",
+              m.csv, "--bounds", m.bounds, "--marker-layout",
+              std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/markers_example.yaml", "-q",
+              "-o", dir + "/wrong.yaml"});
+  EXPECT_EQ(wrong.exit_code, 2) << wrong.err;
+  EXPECT_NE(wrong.err.find("exodaq calibrate: no parameter is identifiable from these data"),
+            std::string::npos)
+      << wrong.err;
+  EXPECT_EQ(file_size(dir + "/wrong.yaml"), -1);
+
+  // Calibrated angles without their calibration: refused, saying what to give.
+  const RunResult r =
+      exodaq({"calibrate", "--encoders", csv, "--markers", m.csv, "--bounds",
+              std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/bounds_seed000.yaml", "-o",
+              dir + "/never.yaml"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("exodaq calibrate: " + csv +
+                       ":1: holds calibrated joint angles (theta = offset + theta_R): name the "
+                       "calibration they were computed with"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(file_size(dir + "/never.yaml"), -1);
 }
 
 // --- candump through the whole tool -------------------------------------------

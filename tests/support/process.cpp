@@ -128,4 +128,18 @@ RunResult run(const std::vector<std::string>& argv, std::chrono::milliseconds ti
   return r;
 }
 
+std::vector<std::string> lcm_logger_argv(const std::string& url, const std::string& channels,
+                                         const std::string& file) {
+  std::vector<std::string> argv;
+  if (::geteuid() == 0 && ::access("/usr/bin/chrt", X_OK) == 0) {
+    argv = {"/usr/bin/chrt", "-f", "10"};
+  }
+  for (const std::string& a :
+       {std::string("lcm-logger"), "--lcm-url=" + url, "--channel=" + channels, std::string("-q"),
+        std::string("-f"), file}) {
+    argv.push_back(a);
+  }
+  return argv;
+}
+
 }  // namespace exodaq::test

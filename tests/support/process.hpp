@@ -32,6 +32,13 @@ class Process {
   std::optional<int> status_;
 };
 
+// The real lcm-logger recording `channels` (a regex) from `url` into `file`.
+// lcm-logger keeps LCM's 30-message subscription queue, 10 ms of exodaq's
+// traffic, and drops silently behind a busy CPU (docs/robustness.md): where
+// the test may (root), it runs at SCHED_FIFO 10, as docs/operations.md advises.
+std::vector<std::string> lcm_logger_argv(const std::string& url, const std::string& channels,
+                                         const std::string& file);
+
 // Runs to completion; returns exit code and the captured stdout + stderr.
 struct RunResult {
   int exit_code = -1;

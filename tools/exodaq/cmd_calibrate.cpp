@@ -1,9 +1,16 @@
 // exodaq calibrate: offline kinematic calibration (seed 000 §4, issues 8 and 18).
-//   exodaq calibrate --encoders LOG.csv --markers MOCAP.csv --bounds B.yaml --out cal.yaml
+//   exodaq calibrate --encoders ENC --markers MOCAP.csv --bounds B.yaml -o cal.yaml
+//                    [-c CONFIG] [--recorded-calibration FILE] [--prefix P]
 //                    [--model M] [--marker-layout L.yaml | --marker-id N]
-//                    [--validate [ENC.csv,]MOCAP.csv ...] [--robust huber|cauchy]
+//                    [--validate [ENC,]MOCAP.csv ...] [--robust huber|cauchy]
 //                    [--estimate-time-offset] [--plot out.png] [--max-points N]
-// docs/calibration.md describes the procedure, the files and the report.
+// ENC: calibrate's own CSV (θᴿ), the CSV of `exodaq export`, or an LCM log
+// (lcm-logger, exodaq replay). The project's recordings hold calibrated
+// angles: with -c CONFIG an LCM log's raw channel is re-processed by `exodaq
+// replay` (θᴿ whatever calibration the rig ran with); otherwise the joint
+// angles less the offsets of --recorded-calibration (default: the config's).
+// Every output is a files::OutputFile. docs/calibration.md describes the
+// procedure, the files and the report.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -13,12 +20,16 @@
 #include <string>
 #include <vector>
 
+#include "child_process.hpp"
 #include "command.hpp"
 #include "exodaq/calibration/inputs.hpp"
 #include "exodaq/calibration/report.hpp"
 #include "exodaq/calibration/solver.hpp"
 #include "exodaq/config/calibration_file.hpp"
 #include "exodaq/config/model_file.hpp"
+#include "exodaq/config/service_config.hpp"
+#include "exodaq/messages/channels.hpp"
+#include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/version.hpp"
 
 namespace exodaq::tools {
@@ -28,6 +39,7 @@ namespace cal = exodaq::calibration;
 
 struct CalibrateOptions {
   std::string encoders, markers, model, bounds, out, plot, residuals, marker_layout;
+  std::string config, recorded_calibration, prefix;
   std::vector<std::string> validate;
   std::string robust = "none";
   double robust_scale_mm = 1.0;
@@ -35,11 +47,104 @@ struct CalibrateOptions {
   std::size_t max_points = 0;
   int marker_id = -1;
   double max_gap_ms = 5.0;
-  bool quiet = false;
+  bool quiet = false;  // common -q
+  // Every file read, so no output replaces one.
+  std::vector<std::string> inputs() const {
+    std::vector<std::string> in{
+        encoders, markers, bounds, model, marker_layout, config, recorded_calibration};
+    for (const auto& v : validate) {
+      const auto comma = v.find(',');
+      in.push_back(v.substr(0, comma));
+      if (comma != std::string::npos) in.push_back(v.substr(comma + 1));
+    }
+    return in;
+  }
 };
+
+// How encoder logs are read: the offsets of the calibration the recorded
+// angles were computed with (--recorded-calibration, else the config's).
+struct EncoderSource {
+  cal::EncoderReadOptions read;
+  std::optional<config::ServiceConfig> config;
+};
+
+EncoderSource encoder_source(const CalibrateOptions& o) {
+  EncoderSource src;
+  if (!o.config.empty()) src.config = config::load_service_config(o.config);
+  if (!o.recorded_calibration.empty()) {
+    src.read.recorded_offsets_rad =
+        config::load_calibration_file(o.recorded_calibration).encoder_offset_rad;
+    src.read.recorded_calibration = o.recorded_calibration;
+  } else if (src.config) {
+    src.read.recorded_offsets_rad = src.config->calibration.encoder_offset_rad;
+    src.read.recorded_calibration =
+        src.config->calibration_path + " (the calibration of " + o.config + ")";
+  }
+  if (!o.prefix.empty()) src.read.prefix = o.prefix;
+  return src;
+}
+
+bool is_lcm_log(const std::string& path) {
+  try {
+    msg::LogReader probe(path);
+    return true;
+  } catch (const msg::LogError&) {
+    return false;
+  }
+}
+
+// The raw channel an LCM log holds for the rig, "" when none.
+std::string raw_channel(const std::string& path, const std::optional<std::string>& prefix) {
+  std::string found;
+  for (const auto& [channel, n] : msg::scan_channels(path)) {
+    const auto parts = msg::split_channel(channel);
+    if (!parts || parts->kind != msg::Kind::kEncoderRaw) continue;
+    if (prefix && parts->prefix != *prefix) continue;
+    if (!found.empty()) return "";  // several rigs: let the joint-state reader say so
+    found = channel;
+  }
+  return found;
+}
+
+// θᴿ from an LCM log's raw channel: `exodaq replay` with the config (its
+// encoders and calibration), then the replayed joint states less that
+// calibration's offsets. Independent of the calibration the rig ran with.
+cal::EncoderSeries read_raw_log(const std::string& path, const std::string& channel,
+                                const CalibrateOptions& o, const EncoderSource& src) {
+  TempDir tmp("calibrate");
+  const std::string replayed = tmp.file("replayed.lcm");
+  const int rc = run_child(
+      {self_path(), "replay", path, "-c", o.config, "-o", replayed, "--channel", channel, "-q"});
+  if (rc != 0) {
+    throw std::runtime_error(path +
+                             ": re-processing its raw channel with exodaq replay failed "
+                             "(exit " +
+                             std::to_string(rc) + ")");
+  }
+  cal::EncoderReadOptions ro = src.read;
+  ro.recorded_offsets_rad = src.config->calibration.encoder_offset_rad;
+  ro.recorded_calibration = src.config->calibration_path;
+  ro.prefix.reset();
+  cal::EncoderSeries s = cal::read_joint_state_log(replayed, ro);
+  s.source = path;
+  s.notes.clear();
+  s.notes.push_back(path + ": " + std::to_string(s.samples.size()) + " samples from " + channel +
+                    ", re-processed with " + o.config + " (theta_R from the raw counts)");
+  return s;
+}
+
+cal::EncoderSeries read_encoders(const std::string& path, const CalibrateOptions& o,
+                                 const EncoderSource& src) {
+  if (src.config && o.recorded_calibration.empty() && is_lcm_log(path)) {
+    const std::string raw = raw_channel(path, src.read.prefix);
+    if (!raw.empty()) return read_raw_log(path, raw, o, src);
+  }
+  return cal::read_encoder_log(path, src.read);
+}
 
 // What the command reads besides the data.
 struct Setup {
+  EncoderSource encoders;
   std::string model_path;
   cal::NominalModel nominal;
   cal::Bounds bounds;
@@ -72,6 +177,7 @@ std::string mm(double m) {
 
 Setup load_setup(const CalibrateOptions& o) {
   Setup s;
+  s.encoders = encoder_source(o);
   s.model_path = o.model.empty() ? config::default_model_path() : o.model;
   const config::KinematicModel model = config::load_model_file(s.model_path);
   s.nominal = cal::nominal_from_chain(model.chain);
@@ -137,7 +243,7 @@ void validate_one(const std::string& spec, const CalibrateOptions& o, const Setu
   const std::string venc_path = comma == std::string::npos ? o.encoders : spec.substr(0, comma);
   const std::string vmk_path = comma == std::string::npos ? spec : spec.substr(comma + 1);
   const cal::EncoderSeries venc =
-      venc_path == o.encoders ? d.encoders : cal::read_encoder_log(venc_path);
+      venc_path == o.encoders ? d.encoders : read_encoders(venc_path, o, s.encoders);
   const cal::MarkerSeries vmk = shifted(read_markers(vmk_path, o, s), report);
   cal::AlignmentOptions vao = alignment_options(o, s.bounds);
   vao.guard_us = 0;
@@ -188,7 +294,7 @@ void write_calibration(const CalibrateOptions& o, const Setup& s, const cal::Rep
   p.rms_after_m = report.after.rms_m;
   p.samples = static_cast<int>(report.points);
   p.notes = provenance_notes(o, s, report, d);
-  config::write_calibration_file(o.out, out);
+  config::write_calibration_file(o.out, out, o.inputs());
   std::cout << "\ncalibration written to " << o.out << " (RMS " << mm(report.before.rms_m) << " -> "
             << mm(report.after.rms_m) << " mm)\n";
 }
@@ -202,23 +308,37 @@ void write_residuals(const CalibrateOptions& o, const cal::Report& report, const
   }
   std::vector<std::int64_t> t;
   for (const auto& pt : d.points) t.push_back(pt.utime_us);
-  cal::write_residual_csv(csv, t, report, d.validation, d.validation_utime);
+  std::vector<std::string> inputs = o.inputs();
+  inputs.push_back(o.out);
+  cal::write_residual_csv(csv, t, report, d.validation, d.validation_utime, inputs);
   std::cout << "residuals written to " << csv << "\n";
   if (!o.plot.empty()) {
     std::string message;
-    cal::plot_residuals(csv, o.plot, message);
+    inputs.push_back(csv);
+    cal::plot_residuals(csv, o.plot, message, inputs);
     std::cout << message << "\n";
   }
 }
 
+// The outputs, checked before anything is read or computed.
+void check_outputs(const CalibrateOptions& o) {
+  files::OutputOptions oo;
+  oo.inputs = o.inputs();
+  files::check_output(o.out, oo);
+  if (!o.residuals.empty()) files::check_output(o.residuals, oo);
+  if (!o.plot.empty()) files::check_output(o.plot, oo);
+}
+
 int run_calibrate(const CalibrateOptions& o) {
+  check_outputs(o);
   const Setup s = load_setup(o);
   Data d;
-  d.encoders = cal::read_encoder_log(o.encoders);
+  d.encoders = read_encoders(o.encoders, o, s.encoders);
   const cal::MarkerSeries mk = read_markers(o.markers, o, s);
   if (!o.quiet) {
     std::cout << "encoders " << o.encoders << ": " << d.encoders.samples.size() << " samples"
               << std::endl;
+    for (const auto& n : d.encoders.notes) std::cout << "  " << n << std::endl;
   }
   cal::AlignmentStats st;
   d.points = align_points(d.encoders, mk, alignment_options(o, s.bounds), s, o.markers, st);
@@ -241,12 +361,21 @@ EXODAQ_REGISTER_COMMAND(
     [](CLI::App& app) -> std::function<int()> {
       auto o = std::make_shared<CalibrateOptions>();
       app.add_option("--encoders", o->encoders,
-                     "encoder log: CSV utime_us,j1_rad..j6_rad[,homed_mask,fault_mask]")
+                     "encoder log: CSV utime_us,j1_rad..j6_rad[,homed_mask,fault_mask], the CSV "
+                     "of exodaq export, or an LCM log (lcm-logger, exodaq replay)")
           ->required();
       app.add_option("--markers", o->markers, "mocap CSV utime_us,x_mm,y_mm,z_mm[,marker_id]")
           ->required();
       app.add_option("--bounds", o->bounds, "bounds and initial guesses (YAML)")->required();
-      app.add_option("--out", o->out, "calibration file to write")->required();
+      app.add_option("-o,--out", o->out, "calibration file to write")->required();
+      app.add_option("-c,--config", o->config,
+                     "the rig's service config: an LCM log's raw channel is re-processed with "
+                     "it; its calibration is the recorded one of an export CSV or joint states");
+      app.add_option("--recorded-calibration", o->recorded_calibration,
+                     "the calibration the recorded joint angles were computed with (export CSV, "
+                     "LCM joint states; default: the config's)");
+      app.add_option("--prefix", o->prefix,
+                     "LCM log: the rig's channel prefix (default: the only one in the log)");
       app.add_option("--model", o->model, "kinematic model file (default: macaque_exo.yaml)");
       app.add_option("--validate", o->validate,
                      "cross-validation sets: MOCAP.csv (same encoder log) or ENC.csv,MOCAP.csv");
@@ -268,14 +397,9 @@ EXODAQ_REGISTER_COMMAND(
           ->excludes(id);
       app.add_option("--max-gap-ms", o->max_gap_ms,
                      "largest encoder gap to interpolate across (default 5 ms)");
-      app.add_flag("--quiet", o->quiet, "no solver progress");
       return [o]() -> int {
-        try {
-          return run_calibrate(*o);
-        } catch (const std::exception& e) {
-          std::fprintf(stderr, "exodaq calibrate: %s\n", e.what());
-          return kExitUsage;
-        }
+        o->quiet = common_options().quiet;
+        return run_calibrate(*o);  // errors: main.cpp prints them, exit 2
       };
     });
 

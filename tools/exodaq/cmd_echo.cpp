@@ -1,7 +1,9 @@
 // `exodaq echo`: live values for people. On a terminal a compact table that
-// refreshes in place about ten times a second; otherwise (or with --csv) one CSV
-// line per message of the chosen channel, header first. --count/--duration
-// make it finite for scripts and tests.
+// refreshes in place about ten times a second; otherwise (or with --csv, or
+// -o FILE) one CSV line per message of the chosen channel, header first, in
+// the schema of docs/messages.md. --count/--duration make it finite for
+// scripts and tests. A write that fails (full disk, closed pipe) ends echo
+// with exit 1 and the reason.
 #include <unistd.h>
 
 #include <csignal>
@@ -13,8 +15,10 @@
 
 #include "command.hpp"
 #include "exodaq/common/clock_now.hpp"
+#include "exodaq/common/files.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/messages/channels.hpp"
-#include "exodaq/messages/fields.hpp"
+#include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/subscriber.hpp"
 #include "rate_meter.hpp"
@@ -38,11 +42,16 @@ void install_stop_handlers() {
 
 struct EchoOptions {
   std::string channel = "joint_state";
+  std::string config;
+  std::string out = "-";
   bool csv = false;
   std::string prefix;
+  bool prefix_given = false;
   std::string url = msg::kDefaultUrl;
-  int64_t count = 0;      // 0: no limit
-  double duration = 0.0;  // s, 0: no limit
+  bool url_given = false;
+  std::optional<config::RequireSync> clock_policy;  // from --config
+  int64_t count = 0;                                // 0: no limit
+  double duration = 0.0;                            // s, 0: no limit
 };
 
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
@@ -86,12 +95,12 @@ class Table {
       const auto rate = meter_.rate_hz();
       const auto recv = meter_.received_fraction();
       const double age_s = static_cast<double>(local_ns - joint_local_ns_) * 1e-9;
-      std::snprintf(
-          buf, sizeof buf, "seq %lld  run %016llx  rate %s Hz  received %s %%  sample %s%s",
-          static_cast<long long>(j.seq), static_cast<unsigned long long>(j.run_id),
-          rate ? fmt("%.1f", *rate).c_str() : "-", recv ? fmt("%.2f", *recv * 100.0).c_str() : "-",
-          msg::sample_flag_names(j.sample_flags).c_str(),
-          age_s > 1.0 ? fmt("  (no data for %.0f s)", age_s).c_str() : "");
+      std::snprintf(buf, sizeof buf, "seq %lld  run %s  rate %s Hz  received %s %%  sample %s%s",
+                    static_cast<long long>(j.seq), msg::run_id_text(j.run_id).c_str(),
+                    rate ? fmt("%.1f", *rate).c_str() : "-",
+                    recv ? fmt("%.2f", *recv * 100.0).c_str() : "-",
+                    msg::sample_flag_names(j.sample_flags).c_str(),
+                    age_s > 1.0 ? fmt("  (no data for %.0f s)", age_s).c_str() : "");
       lines.emplace_back(buf);
       lines.emplace_back("joint                  angle deg   vel deg/s  homed  flags");
       for (int i = 0; i < 6; ++i) {
@@ -128,7 +137,9 @@ class Table {
       std::snprintf(buf, sizeof buf, "status   %s  \"%.60s\"  overruns %lld  clock %s  bus %s%s",
                     std::string(msg::state_name(s.state)).c_str(), s.message.c_str(),
                     static_cast<long long>(s.overruns),
-                    s.clock_synchronised ? "synced" : "UNSYNCED",
+                    s.clock_synchronised                                ? "synced"
+                    : opt_.clock_policy == config::RequireSync::kIgnore ? "unsynced (ignored)"
+                                                                        : "UNSYNCED",
                     std::string(msg::bus_state_name(s.bus_state)).c_str(),
                     age_s > 1.0 ? fmt("  (stale %.0f s)", age_s).c_str() : "");
       lines.emplace_back(buf);
@@ -158,91 +169,156 @@ class Table {
   int drawn_lines_ = 0;
 };
 
-int run_echo(const EchoOptions& opt) {
-  const bool csv = opt.csv || !isatty(STDOUT_FILENO);
-  const auto kind = msg::parse_kind(opt.channel);
-  // A name we do not know is a literal channel; its type comes from the payload.
-  const std::string channel = kind ? msg::channel_name(opt.prefix, *kind) : opt.channel;
+// CSV lines in the schema of docs/messages.md, to standard output or a file
+// (written as a files::OutputFile: a file appears when echo ends). The header
+// goes out with the first message: it names the joints that message names.
+class CsvEcho {
+ public:
+  CsvEcho(const std::string& out, std::optional<msg::Kind> kind)
+      : out_(out, output_options()), kind_(kind) {}
 
-  msg::Subscriber subscriber(opt.url);
-  install_stop_handlers();
-
-  int64_t received = 0;  // messages on the chosen channel
-  bool header_done = false;
-  std::optional<msg::Kind> csv_kind = kind;
-  auto print_header = [&](msg::Kind k) {
-    const auto names = msg::field_names(k);
-    std::fprintf(stdout, "%s\n", msg::csv_line(names).c_str());
-    header_done = true;
-  };
-
-  Table table(opt);
-  if (csv) {
-    if (kind) print_header(*kind);
-    subscriber.subscribe(channel, kind, [&](const msg::Received& r) {
-      if (opt.count > 0 && received >= opt.count) return;
-      const auto k = msg::kind_of(r.msg);
-      if (!csv_kind) csv_kind = k;
-      if (k != *csv_kind) return;  // a literal channel carrying mixed types: keep the first
-      if (!header_done) print_header(k);
-      std::vector<std::string> values;
-      for (auto& f : msg::fields(r.msg)) values.push_back(std::move(f.value));
-      const std::string line = msg::csv_line(values) + "\n";
-      std::fwrite(line.data(), 1, line.size(), stdout);
-      ++received;
-    });
-  } else {
-    std::vector<std::string> channels;
-    for (auto k : msg::kAllKinds) channels.push_back(msg::channel_name(opt.prefix, k));
-    if (!kind) channels.push_back(channel);
-    for (const auto& c : channels) {
-      subscriber.subscribe(c, std::nullopt, [&, c](const msg::Received& r) {
-        table.on(r, mono_now_ns());
-        if (c == channel) ++received;
-      });
-    }
-    std::fputs("\x1b[?25l", stdout);  // hide the cursor while redrawing
+  static files::OutputOptions output_options() {
+    files::OutputOptions o;
+    o.allow_stdout = true;
+    return o;
   }
 
+  // False when the message is not of the kind being printed.
+  bool on(const msg::Received& r) {
+    const auto k = msg::kind_of(r.msg);
+    if (!kind_) kind_ = k;
+    if (k != *kind_) return false;  // a literal channel carrying mixed types: keep the first
+    if (!header_done_) {
+      out_.write(msg::csv::line(msg::csv::header(k, msg::csv::joints_of(r.msg))) + "\n");
+      header_done_ = true;
+    }
+    values_.clear();
+    msg::csv::append_values(r.msg, values_);
+    out_.write(msg::csv::line(values_) + "\n");
+    return true;
+  }
+  void flush() { out_.flush(); }
+  void commit() { out_.commit(); }
+
+ private:
+  files::OutputFile out_;
+  std::optional<msg::Kind> kind_;
+  bool header_done_ = false;
+  std::vector<std::string> values_;
+};
+
+// What one echo run shares between its subscriptions and its loop.
+struct EchoRun {
+  const EchoOptions& opt;
+  std::string channel;  // the channel counted and printed
+  std::optional<msg::Kind> kind;
+  bool csv = false;
+  std::optional<CsvEcho> csv_out;
+  Table table;
+  int64_t received = 0;     // messages on the chosen channel
+  std::string write_error;  // the first failed write (stops the loop)
+  explicit EchoRun(const EchoOptions& o) : opt(o), table(o) {}
+};
+
+void subscribe(EchoRun& run, msg::Subscriber& subscriber) {
+  if (run.csv) {
+    subscriber.subscribe(run.channel, run.kind, [&run](const msg::Received& r) {
+      if ((run.opt.count > 0 && run.received >= run.opt.count) || !run.write_error.empty()) return;
+      try {
+        if (run.csv_out->on(r)) ++run.received;
+      } catch (const files::FileError& e) {  // not through LCM's C frames
+        run.write_error = e.what();
+      }
+    });
+    return;
+  }
+  std::vector<std::string> channels;
+  for (auto k : msg::kAllKinds) channels.push_back(msg::channel_name(run.opt.prefix, k));
+  if (!run.kind) channels.push_back(run.channel);
+  for (const auto& c : channels) {
+    subscriber.subscribe(c, std::nullopt, [&run, c](const msg::Received& r) {
+      run.table.on(r, mono_now_ns());
+      if (c == run.channel) ++run.received;
+    });
+  }
+}
+
+// Until --count, --duration, a signal or a write error: kExitOk or kExitFailure.
+int echo_loop(EchoRun& run, msg::Subscriber& subscriber) {
+  const EchoOptions& opt = run.opt;
   const int64_t start = mono_now_ns();
   const int64_t end = opt.duration > 0 ? start + static_cast<int64_t>(opt.duration * 1e9) : 0;
   constexpr int64_t kRefreshNs = 100'000'000;
   int64_t next_draw = start;
   int64_t last_flush = start;
-  int rc = kExitOk;
-  while (!g_stop) {
-    if (opt.count > 0 && received >= opt.count) break;
+  while (!g_stop && run.write_error.empty()) {
+    if (opt.count > 0 && run.received >= opt.count) break;
     int64_t now = mono_now_ns();
     if (end && now >= end) {
-      if (opt.count > 0 && received < opt.count) {
-        std::fprintf(stderr, "exodaq echo: %lld of %lld messages on %s within %g s\n",
-                     static_cast<long long>(received), static_cast<long long>(opt.count),
-                     channel.c_str(), opt.duration);
-        rc = kExitFailure;
+      if (opt.count > 0 && run.received < opt.count) {
+        print_error(std::to_string(run.received) + " of " + std::to_string(opt.count) +
+                    " messages on " + run.channel + " within " + msg::csv::number(opt.duration) +
+                    " s");
+        return kExitFailure;
       }
       break;
     }
-    if (!csv && now >= next_draw) {
-      table.render(now);
+    if (!run.csv && now >= next_draw) {
+      run.table.render(now);
       next_draw = now + kRefreshNs;
     }
-    int64_t wait_ns = csv ? kRefreshNs : next_draw - now;
+    int64_t wait_ns = run.csv ? kRefreshNs : next_draw - now;
     if (end) wait_ns = std::min(wait_ns, end - now);
     const int timeout_ms = static_cast<int>(std::max<int64_t>(1, (wait_ns + 999'999) / 1'000'000));
     const int r = subscriber.handle(timeout_ms);
     if (r < 0 && !g_stop) {
-      std::fprintf(stderr, "exodaq echo: LCM receive failed\n");
-      rc = kExitFailure;
-      break;
+      print_error("LCM receive failed");
+      return kExitFailure;
     }
     now = mono_now_ns();
-    if (csv && (r == 0 || now - last_flush >= kRefreshNs)) {
-      std::fflush(stdout);
+    if (run.csv && run.write_error.empty() && (r == 0 || now - last_flush >= kRefreshNs)) {
+      try {
+        run.csv_out->flush();
+      } catch (const files::FileError& e) {
+        run.write_error = e.what();
+      }
       last_flush = now;
     }
   }
-  if (!csv) {
-    table.render(mono_now_ns());
+  return kExitOk;
+}
+
+int run_echo(EchoOptions opt) {
+  if (!opt.config.empty()) {
+    const config::ServiceConfig cfg = config::load_service_config(opt.config);
+    if (!opt.url_given) opt.url = cfg.lcm.url;
+    if (!opt.prefix_given) opt.prefix = cfg.lcm.prefix;
+    opt.clock_policy = cfg.clock.require_sync;
+  }
+  EchoRun run(opt);
+  run.csv = opt.csv || opt.out != "-" || !isatty(STDOUT_FILENO);
+  run.kind = msg::parse_kind(opt.channel);
+  // A name we do not know is a literal channel; its type comes from the payload.
+  run.channel = run.kind ? msg::channel_name(opt.prefix, *run.kind) : opt.channel;
+  if (run.csv) run.csv_out.emplace(opt.out, run.kind);
+  msg::Subscriber subscriber(opt.url);
+  install_stop_handlers();
+  subscribe(run, subscriber);
+  if (!run.csv) std::fputs("\x1b[?25l", stdout);  // hide the cursor while redrawing
+
+  const int rc = echo_loop(run, subscriber);
+  if (!run.write_error.empty()) {
+    print_error(run.write_error);
+    return kExitFailure;
+  }
+  if (common_options().verbose) {
+    print_error(std::to_string(run.received) + " messages on " + run.channel + " from " + opt.url +
+                ", " + std::to_string(subscriber.undecodable()) + " undecodable");
+  }
+  if (run.csv) {
+    run.csv_out->commit();  // throws FileError with the reason
+  } else {
+    run.table.render(mono_now_ns());
     std::fputs("\x1b[?25h", stdout);
   }
   std::fflush(stdout);
@@ -251,13 +327,21 @@ int run_echo(const EchoOptions& opt) {
 
 std::function<int()> setup_echo(CLI::App& app) {
   auto opt = std::make_shared<EchoOptions>();
-  app.add_option("--channel,-c", opt->channel,
+  app.add_option("--channel", opt->channel,
                  "joint_state, palm_pose, encoder_raw or status (or EXO_* names; the prefix is "
                  "added), or any other literal channel name")
       ->capture_default_str();
+  app.add_option("-c,--config", opt->config,
+                 "the daemon's service config: LCM URL and prefix from it");
+  app.add_option("-o,--out", opt->out,
+                 "CSV to this file (written when echo ends), - for standard output")
+      ->capture_default_str();
   app.add_flag("--csv", opt->csv, "CSV lines even on a terminal (the default when piped)");
-  app.add_option("--prefix,-p", opt->prefix, "channel prefix of the rig (config lcm.prefix)");
-  app.add_option("--url,-u", opt->url, "LCM URL")->capture_default_str();
+  app.add_option("--prefix,-p", opt->prefix, "channel prefix of the rig (config lcm.prefix)")
+      ->each([opt](const std::string&) { opt->prefix_given = true; });
+  app.add_option("--url,-u", opt->url, "LCM URL")
+      ->capture_default_str()
+      ->each([opt](const std::string&) { opt->url_given = true; });
   app.add_option("--count,-n", opt->count, "stop after N messages of the channel (0: no limit)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--duration,-d", opt->duration,

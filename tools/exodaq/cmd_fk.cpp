@@ -23,30 +23,24 @@ struct FkOptions {
 
 int run_fk(const FkOptions& o) {
   if (o.deg.empty() == o.rad.empty()) {
-    std::fprintf(stderr, "exodaq fk: give the joints with --joints-deg or --joints-rad\n");
+    print_error("give the joints with --joints-deg or --joints-rad");
     return kExitUsage;
   }
   const std::string path = o.model.empty() ? config::default_model_path() : o.model;
-  config::KinematicModel model;
-  try {
-    model = config::load_model_file(path);
-  } catch (const config::ConfigError& e) {
-    std::fprintf(stderr, "exodaq fk: %s\n", e.what());
-    return kExitUsage;
-  }
+  const config::KinematicModel model = config::load_model_file(path);
   const bool in_deg = !o.deg.empty();
   const std::vector<double>& given = in_deg ? o.deg : o.rad;
   const int n = model.chain.joint_count();
   if (static_cast<int>(given.size()) != n) {
-    std::fprintf(stderr, "exodaq fk: model '%s' has %d joints, %zu joint values given\n",
-                 model.name.c_str(), n, given.size());
+    print_error("model '" + model.name + "' has " + std::to_string(n) + " joints, " +
+                std::to_string(given.size()) + " joint values given");
     return kExitUsage;
   }
   kin::JointVector q(n);
   for (int i = 0; i < n; ++i) {
     const double v = given[static_cast<std::size_t>(i)];
     if (!std::isfinite(v)) {
-      std::fprintf(stderr, "exodaq fk: joint %d value is not a finite number\n", i + 1);
+      print_error("joint " + std::to_string(i + 1) + " value is not a finite number");
       return kExitUsage;
     }
     q[i] = in_deg ? v * config::kDegToRad : v;
@@ -62,34 +56,28 @@ int run_fk(const FkOptions& o) {
   }
 
   if (o.json) {
-    std::string names = "[";
-    for (int i = 0; i < n; ++i) {
-      names +=
-          (i ? ", " : "") + json_string(model.chain.joints()[static_cast<std::size_t>(i)].name);
-    }
-    names += "]";
-    std::string out_list = "[";
-    for (std::size_t i = 0; i < outside.size(); ++i)
-      out_list += (i ? ", " : "") + json_string(outside[i]);
-    out_list += "]";
+    std::vector<std::string> names;
+    for (const auto& j : model.chain.joints()) names.push_back(j.name);
     const auto& R = pose.palm_rotation;
-    std::printf(
-        "{\"model\": %s, \"model_file\": %s, \"joint_names\": %s, \"joints_rad\": %s,\n"
-        " \"palm_position_m\": %s,\n"
-        " \"palm_rotation\": [%s, %s, %s],\n"
-        " \"palm_quaternion_wxyz\": %s,\n"
-        " \"elbow_frame\": %d, \"elbow_position_m\": %s,\n"
-        " \"shoulder_manipulability\": %s, \"shoulder_manipulability_normalised\": %s,\n"
-        " \"near_singular\": %s, \"joints_outside_limits\": %s}\n",
-        json_string(model.name).c_str(), json_string(path).c_str(), names.c_str(),
-        json_array(q).c_str(), json_array(pose.palm_position).c_str(),
-        json_array(Eigen::Vector3d(R.row(0).transpose())).c_str(),
-        json_array(Eigen::Vector3d(R.row(1).transpose())).c_str(),
-        json_array(Eigen::Vector3d(R.row(2).transpose())).c_str(),
-        json_array(pose.palm_quaternion_wxyz).c_str(), model.rig.elbow_frame,
-        json_array(pose.elbow_position).c_str(), json_number(pose.shoulder_manipulability).c_str(),
-        json_number(pose.shoulder_manipulability_normalised).c_str(),
-        pose.near_singular ? "true" : "false", out_list.c_str());
+    const std::string rotation = "[" + json_array(Eigen::Vector3d(R.row(0).transpose())) + ", " +
+                                 json_array(Eigen::Vector3d(R.row(1).transpose())) + ", " +
+                                 json_array(Eigen::Vector3d(R.row(2).transpose())) + "]";
+    JsonObject j;
+    j.add("model", json_string(model.name))
+        .add("model_file", json_string(path))
+        .add("joint_names", json_strings(names))
+        .add("joints_rad", json_array(q))
+        .add("palm_position_m", json_array(pose.palm_position))
+        .add("palm_rotation", rotation)
+        .add("palm_quaternion_wxyz", json_array(pose.palm_quaternion_wxyz))
+        .add("elbow_frame", std::to_string(model.rig.elbow_frame))
+        .add("elbow_position_m", json_array(pose.elbow_position))
+        .add("shoulder_manipulability", json_measure(pose.shoulder_manipulability))
+        .add("shoulder_manipulability_normalised",
+             json_measure(pose.shoulder_manipulability_normalised))
+        .add("near_singular", json_bool(pose.near_singular))
+        .add("joints_outside_limits", json_strings(outside));
+    std::printf("%s\n", j.text().c_str());
     return kExitOk;
   }
 

@@ -33,7 +33,7 @@ struct IkCliOptions {
 };
 
 int usage_error(const std::string& what) {
-  std::fprintf(stderr, "exodaq ik: %s\n", what.c_str());
+  print_error(what);
   return kExitUsage;
 }
 
@@ -111,66 +111,63 @@ std::string free_joint_name(const IkRun& r) {
   return f < 0 ? "" : r.model->chain.joints()[static_cast<std::size_t>(f)].name;
 }
 
-void print_solution_json(const IkRun& r, const kin::IkSolution& s, bool last) {
-  std::string outside = "[";
-  int count = 0;
+JsonObject solution_json(const IkRun& r, const kin::IkSolution& s) {
+  std::vector<std::string> outside;
   for (int i = 0; i < r.model->chain.joint_count(); ++i) {
     const auto& j = r.model->chain.joints()[static_cast<std::size_t>(i)];
     if (s.q[i] < j.limits.lower - 1e-12 || s.q[i] > j.limits.upper + 1e-12) {
-      outside += (count++ ? ", " : "") + json_string(j.name);
+      outside.push_back(j.name);
     }
   }
-  outside += "]";
   const kin::JointVector deg = s.q / config::kDegToRad;
   const std::string interval =
       std::isfinite(s.free_lower)
-          ? "[" + json_number(s.free_lower) + ", " + json_number(s.free_upper) + "]"
+          ? "[" + json_measure(s.free_lower) + ", " + json_measure(s.free_upper) + "]"
           : "null";
-  std::printf(
-      "  {\"joints_rad\": %s, \"joints_deg\": %s, \"within_limits\": %s, "
-      "\"joints_outside_limits\": %s,\n   \"position_residual_m\": %s, "
-      "\"orientation_residual_rad\": %s, \"shoulder_manipulability\": %s, "
-      "\"shoulder_manipulability_normalised\": %s, \"free_joint_interval_rad\": %s}%s\n",
-      json_array(s.q).c_str(), json_array(deg).c_str(), s.within_limits ? "true" : "false",
-      outside.c_str(), json_number(s.position_residual).c_str(),
-      json_number(s.orientation_residual).c_str(), json_number(s.shoulder_manipulability).c_str(),
-      json_number(s.shoulder_manipulability_normalised).c_str(), interval.c_str(), last ? "" : ",");
+  JsonObject j;
+  j.add("joints_rad", json_array(s.q))
+      .add("joints_deg", json_array(deg))
+      .add("within_limits", json_bool(s.within_limits))
+      .add("joints_outside_limits", json_strings(outside))
+      .add("position_residual_m", json_number(s.position_residual))
+      .add("orientation_residual_rad", json_number(s.orientation_residual))
+      .add("shoulder_manipulability", json_measure(s.shoulder_manipulability))
+      .add("shoulder_manipulability_normalised", json_measure(s.shoulder_manipulability_normalised))
+      .add("free_joint_interval_rad", interval);
+  return j;
 }
 
 void print_json(const IkRun& r) {
   const auto& chain = r.model->chain;
-  std::string names = "[";
-  for (int i = 0; i < chain.joint_count(); ++i) {
-    names += (i ? ", " : "") + json_string(chain.joints()[static_cast<std::size_t>(i)].name);
-  }
-  names += "]";
+  std::vector<std::string> names;
+  for (const auto& j : chain.joints()) names.push_back(j.name);
   const Eigen::Matrix3d& R = r.target.linear();
   const std::string free = free_joint_name(r);
-  std::printf(
-      "{\"model\": %s, \"model_file\": %s, \"joint_names\": %s,\n"
-      " \"palm_position_m\": %s, \"palm_rotation\": [%s, %s, %s], \"palm_quaternion_wxyz\": %s,\n"
-      " \"solver\": \"%s\", \"redundancy\": %d, \"free_joint\": %s, \"free_joint_value_rad\": %s,\n"
-      " \"position_tolerance_m\": %s, \"orientation_tolerance_rad\": %s,\n"
-      " \"status\": \"%s\", \"truncated\": %s, \"best_position_residual_m\": %s,\n"
-      " \"best_orientation_residual_rad\": %s, \"elbow_sphere_miss_m\": %s,\n"
-      " \"solutions\": [\n",
-      json_string(r.model->name).c_str(), json_string(r.path).c_str(), names.c_str(),
-      json_array(Eigen::Vector3d(r.target.translation())).c_str(),
-      json_array(Eigen::Vector3d(R.row(0).transpose())).c_str(),
-      json_array(Eigen::Vector3d(R.row(1).transpose())).c_str(),
-      json_array(Eigen::Vector3d(R.row(2).transpose())).c_str(),
-      json_array(kin::quaternion_wxyz(R)).c_str(),
-      r.solver->analytical() ? "closed_form" : "numerical", r.solver->redundancy(),
-      free.empty() ? "null" : json_string(free).c_str(), json_number(r.free_value).c_str(),
-      json_number(r.options->position_tolerance).c_str(),
-      json_number(r.options->orientation_tolerance).c_str(), kin::to_string(r.result->status),
-      r.result->truncated ? "true" : "false", json_number(r.result->best_position_residual).c_str(),
-      json_number(r.result->best_orientation_residual).c_str(),
-      json_number(r.result->elbow_sphere_miss).c_str());
-  const auto& sols = r.result->solutions;
-  for (std::size_t i = 0; i < sols.size(); ++i)
-    print_solution_json(r, sols[i], i + 1 == sols.size());
-  std::printf(" ]}\n");
+  const std::string rotation = "[" + json_array(Eigen::Vector3d(R.row(0).transpose())) + ", " +
+                               json_array(Eigen::Vector3d(R.row(1).transpose())) + ", " +
+                               json_array(Eigen::Vector3d(R.row(2).transpose())) + "]";
+  std::vector<JsonObject> solutions;
+  for (const auto& s : r.result->solutions) solutions.push_back(solution_json(r, s));
+  JsonObject j;
+  j.add("model", json_string(r.model->name))
+      .add("model_file", json_string(r.path))
+      .add("joint_names", json_strings(names))
+      .add("palm_position_m", json_array(Eigen::Vector3d(r.target.translation())))
+      .add("palm_rotation", rotation)
+      .add("palm_quaternion_wxyz", json_array(kin::quaternion_wxyz(R)))
+      .add("solver", json_string(r.solver->analytical() ? "closed_form" : "numerical"))
+      .add("redundancy", std::to_string(r.solver->redundancy()))
+      .add("free_joint", free.empty() ? "null" : json_string(free))
+      .add("free_joint_value_rad", json_number(r.free_value))
+      .add("position_tolerance_m", json_number(r.options->position_tolerance))
+      .add("orientation_tolerance_rad", json_number(r.options->orientation_tolerance))
+      .add("status", json_string(kin::to_string(r.result->status)))
+      .add("truncated", json_bool(r.result->truncated))
+      .add("best_position_residual_m", json_number(r.result->best_position_residual))
+      .add("best_orientation_residual_rad", json_number(r.result->best_orientation_residual))
+      .add("elbow_sphere_miss_m", json_number(r.result->elbow_sphere_miss))
+      .add("solutions", json_objects(solutions, 2));
+  std::printf("%s\n", j.text().c_str());
 }
 
 // Print -0.000000 as 0.000000.

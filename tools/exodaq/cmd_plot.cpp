@@ -1,12 +1,12 @@
 // exodaq plot: figures of a recording in the spirit of seed 000 Figs. 16-18,
 // drawn by matplotlib (tools/plot/exodaq_plot.py) from the CSV export.
-//   exodaq plot LOG --out DIR [--prefix P] [--script FILE] [--python EXE]
+//   exodaq plot LOG -o DIR [-c CONFIG] [--calibration FILE] [--prefix P]
+//               [--script FILE] [--python EXE]
 // Writes DIR/cycles.csv (the export) and DIR/joint_trajectories.png,
-// DIR/palm_path_3d.png, DIR/shoulder_manipulability.png.
-#include <spawn.h>
+// DIR/palm_path_3d.png, DIR/shoulder_manipulability.png. Everything is made
+// in a private temporary folder first; DIR is created, and the files put in
+// it (as files::OutputFile), only when all of them were made.
 #include <sys/stat.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
@@ -18,21 +18,27 @@
 #include <string>
 #include <vector>
 
+#include "child_process.hpp"
 #include "command.hpp"
+#include "exodaq/common/files.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "export_csv.hpp"
-
-extern char** environ;
 
 namespace exodaq::tools {
 
 namespace {
 
+namespace fs = std::filesystem;
+
 const char* const kFigures[] = {"joint_trajectories.png", "palm_path_3d.png",
                                 "shoulder_manipulability.png"};
+constexpr const char* kCsvName = "cycles.csv";
 
 struct PlotOptions {
   std::string log;
   std::string out;
+  std::string config;
+  std::string calibration;
   std::string prefix;
   bool prefix_given = false;
   std::string script;
@@ -50,7 +56,7 @@ std::string find_script(const PlotOptions& o) {
   // Installed: <prefix>/bin/exodaq and <prefix>/share/exodaq/plot/; the build
   // tree mirrors it: build/tools/exodaq and build/share/exodaq/plot/.
   std::error_code ec;
-  const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  const auto exe = fs::read_symlink("/proc/self/exe", ec);
   if (!ec) {
     std::string candidate =
         (exe.parent_path().parent_path() / "share/exodaq/plot/exodaq_plot.py").string();
@@ -68,63 +74,81 @@ std::string find_python(const PlotOptions& o) {
   return "python3";
 }
 
-int run_child(const std::vector<std::string>& args) {
-  std::vector<char*> argv;
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  pid_t pid = 0;
-  const int rc = posix_spawnp(&pid, argv[0], nullptr, nullptr, argv.data(), environ);
-  if (rc != 0) {
-    throw std::runtime_error("cannot run '" + args[0] + "': " + std::strerror(rc));
-  }
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) throw std::runtime_error("waitpid failed");
-  }
-  if (WIFEXITED(status)) return WEXITSTATUS(status);
-  return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+// What the titles say: the log, its rig and first run, the calibration.
+std::string title_of(const PlotOptions& o, const CsvExport& e, const std::string& calibration) {
+  std::string t = fs::path(o.log).filename().string();
+  t += "  |  rig " + (e.rig.empty() ? std::string("?") : e.rig);
+  t += ", run " + e.first_run + (e.runs > 1 ? " (+" + std::to_string(e.runs - 1) + " more)" : "");
+  t += "  |  calibration " +
+       (calibration.empty() ? std::string("not given (-c/--calibration)") : calibration);
+  return t;
 }
 
 int run_plot(const PlotOptions& o) {
-  std::filesystem::create_directories(o.out);
-  const std::string csv = o.out + "/cycles.csv";
-  const CsvExport exported =
-      export_log_csv(o.log, o.prefix_given ? std::optional(o.prefix) : std::nullopt, csv);
-  const std::vector<std::string>& names = exported.joint_names;
-  if (!exported.damage.empty()) std::fprintf(stderr, "exodaq plot: %s\n", exported.damage.c_str());
+  // The output folder: a directory or nothing yet (created only at the end).
+  struct stat st {};
+  if (::stat(o.out.c_str(), &st) == 0 && !S_ISDIR(st.st_mode)) {
+    throw files::FileError(o.out, "is " + files::file_kind(st.st_mode) + ", not a directory");
+  }
+  std::string calibration = o.calibration;
+  double threshold = -1.0;  // unknown: the script says so
+  if (!o.config.empty()) {
+    const config::ServiceConfig cfg = config::load_service_config(o.config);
+    if (calibration.empty()) calibration = cfg.calibration_path;
+    threshold = cfg.singularity_threshold;
+  }
+  const std::string prefix =
+      choose_prefix(o.log, o.prefix_given ? std::optional(o.prefix) : std::nullopt);
+
+  TempDir staging("plot");
+  files::OutputFile csv(staging.file(kCsvName));
+  const CsvExport exported = export_log_csv(o.log, prefix, csv);
+  if (!exported.damage.empty()) print_error(exported.damage);
   if (exported.rows == 0) {
-    std::fprintf(stderr, "exodaq plot: '%s' has no joint_state_t message\n", o.log.c_str());
+    print_error(o.log + ": no cycles (only the daemon's start-up messages?); nothing written");
     return kExitFailure;
   }
-  std::string joined;
-  for (const auto& n : names) joined += (joined.empty() ? "" : ",") + n;
-  const std::vector<std::string> args{find_python(o),  find_script(o), "--csv",   csv,
-                                      "--out",         o.out,          "--title", o.log,
-                                      "--joint-names", joined};
+  csv.commit();
+  std::string names;
+  for (const auto& n : exported.joint_names) names += (names.empty() ? "" : ",") + n;
+  std::vector<std::string> args{
+      find_python(o),  find_script(o), "--csv",   staging.file(kCsvName),
+      "--out",         staging.dir(),  "--title", title_of(o, exported, calibration),
+      "--joint-names", names};
+  if (threshold >= 0.0) {
+    args.push_back("--threshold");
+    args.push_back(msg::csv::number(threshold));
+  }
+  if (common_options().quiet) args.push_back("--quiet");
   const int rc = run_child(args);
   if (rc != 0) {
-    std::fprintf(stderr, "exodaq plot: %s exited with %d\n", args[1].c_str(), rc);
+    print_error("the figures could not be made (" + args[1] + " exited with " + std::to_string(rc) +
+                "); nothing written");
     return kExitFailure;
   }
-  int missing = 0;
-  for (const char* f : kFigures) {
-    const std::string path = o.out + "/" + f;
-    if (!is_file(path)) {
-      std::fprintf(stderr, "exodaq plot: %s was not written\n", path.c_str());
-      ++missing;
-    } else {
-      std::printf("%s\n", path.c_str());
-    }
+  // Every file made: now the folder and the files, each put in place whole.
+  fs::create_directories(o.out);
+  files::OutputOptions oo;
+  oo.inputs = {o.log};
+  std::vector<std::string> made{kCsvName};
+  for (const char* f : kFigures) made.emplace_back(f);
+  for (const std::string& f : made) {
+    const std::string target = (fs::path(o.out) / f).lexically_normal().string();
+    files::write_output(target, files::read_input(staging.file(f), -1), oo);
+    if (!common_options().quiet) std::printf("%s\n", target.c_str());
   }
-  return missing == 0 ? kExitOk : kExitFailure;
+  return exported.damage.empty() ? kExitOk : kExitFailure;
 }
 
 std::function<int()> setup_plot(CLI::App& sub) {
   auto o = std::make_shared<PlotOptions>();
-  sub.add_option("log", o->log, "LCM log (lcm-logger or exodaq replay)")
-      ->required()
-      ->check(CLI::ExistingFile);
-  sub.add_option("-o,--out", o->out, "directory for the figures and cycles.csv")->required();
+  sub.add_option("log", o->log, "LCM log (lcm-logger or exodaq replay)")->required();
+  sub.add_option("-o,--out", o->out, "folder for the figures and cycles.csv")->required();
+  sub.add_option("-c,--config", o->config,
+                 "the service config of the recording or replay: its calibration and "
+                 "singularity threshold go into the figures");
+  sub.add_option("--calibration", o->calibration,
+                 "the calibration the log was computed with (default: the config's)");
   auto* prefix =
       sub.add_option("--prefix", o->prefix, "channel prefix (default: the only one in the log)");
   sub.add_option("--script", o->script,
@@ -142,5 +166,5 @@ std::function<int()> setup_plot(CLI::App& sub) {
 
 EXODAQ_REGISTER_COMMAND(plot, "plot",
                         "PNG figures of a recording: joint trajectories, palm path in 3D, "
-                        "normalised shoulder manipulability (invalid spans shaded)",
+                        "normalised shoulder manipulability (invalid and unhomed spans marked)",
                         exodaq::tools::setup_plot);

@@ -1,9 +1,11 @@
 // exodaq replay: re-process a recording through the full pipeline (homing,
 // offsets, kinematics, faults) with a configuration's model and calibration,
 // and write the results as an LCM log (docs/replay.md).
-//   exodaq replay IN --config C --out OUT.lcm [--speed 0.5|1|4|max]
+//   exodaq replay IN -c C -o OUT.lcm [--speed 0.5|1|4|max]
 //                 [--format auto|lcm|candump] [--calibration FILE]
-//                 [--channel NAME] [--prefix P] [--quiet]
+//                 [--channel NAME] [--prefix P] [-q] [-v]
+// The output is written as a files::OutputFile (through msg::LogWriter): it
+// appears complete or not at all, and never replaces an input.
 //
 // Cycles are driven one by one on this thread (Acquisition::run_cycle), each
 // at its recorded instant: at --speed max nothing sleeps, otherwise cycle k
@@ -26,6 +28,7 @@
 
 #include "command.hpp"
 #include "exodaq/common/clock_now.hpp"
+#include "exodaq/common/files.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
@@ -64,7 +67,8 @@ std::int64_t thread_cpu_now() {
 // deterministic values: mono_ns = the last cycle's, work_* = 0.
 class LcmLogSink final : public core::MessageSink {
  public:
-  explicit LcmLogSink(const std::string& path) : log_(path) {}
+  LcmLogSink(const std::string& path, const std::vector<std::string>& inputs)
+      : log_(path, inputs) {}
 
   // Messages before arm() (the Acquisition's start-up encoder warm-up) are dropped.
   void arm() noexcept { armed_ = true; }
@@ -104,6 +108,7 @@ class LcmLogSink final : public core::MessageSink {
     log_.close();
   }
 
+  bool failed() const noexcept { return !error_.empty(); }
   std::int64_t written() const noexcept { return log_.events(); }
   std::int64_t palm_messages() const noexcept { return palm_messages_; }
   std::int64_t valid_palm() const noexcept { return valid_; }
@@ -131,8 +136,54 @@ struct ReplayOptions {
   std::string channel;
   std::string prefix;
   bool prefix_given = false;
-  bool quiet = false;
 };
+
+std::string hex_bytes(const std::string& b) {
+  std::string out;
+  char buf[4];
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%s%02x", i ? " " : "", static_cast<unsigned char>(b[i]));
+    out += buf;
+  }
+  return out;
+}
+
+// What the input is, said before the backend reads it: "auto" becomes "lcm"
+// or "candump", or the error says what the file is not. FIFOs, devices and
+// directories are refused here (files::check_input).
+std::string check_recording(const std::string& path, const std::string& format) {
+  const files::InputInfo info = files::check_input(path, -1);
+  if (format == "candump" || format == "lcm") return format;  // the backend's own messages
+  if (info.size == 0) {
+    throw files::FileError(path, "empty file, not a recording (an LCM log or a candump log)");
+  }
+  const int fd = files::open_input(path, -1);
+  std::string head(256, '\0');
+  const ssize_t n = ::read(fd, head.data(), head.size());
+  ::close(fd);
+  head.resize(n > 0 ? static_cast<std::size_t>(n) : 0);
+  if (head.size() >= 4 && static_cast<unsigned char>(head[0]) == 0xED &&
+      static_cast<unsigned char>(head[1]) == 0xA1 && static_cast<unsigned char>(head[2]) == 0xDA &&
+      static_cast<unsigned char>(head[3]) == 0x01) {
+    return "lcm";
+  }
+  const std::size_t first = head.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && head[first] == '(') return "candump";
+  std::string line = head.substr(0, std::min(head.find('\n'), std::size_t{40}));
+  for (char& c : line) {
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '.';
+  }
+  throw files::FileError(path, "not an LCM log (first bytes " + hex_bytes(head.substr(0, 8)) +
+                                   ") nor a candump log (line 1, '" + line +
+                                   "', does not start with a '(timestamp)')");
+}
+
+// The backend's messages start "replay: "; the tool says "exodaq replay: ".
+[[noreturn]] void rethrow_without_prefix(const std::exception& e) {
+  std::string what = e.what();
+  if (what.rfind("replay: ", 0) == 0) what.erase(0, 8);
+  throw std::runtime_error(what);
+}
 
 class Progress {
  public:
@@ -170,8 +221,9 @@ struct ReplayRun {
 // Drives the cycles one by one at the recorded instants (paced by `speed`, or
 // flat out when 0) until the recording ends or SIGINT/SIGTERM, then stops the
 // acquisition (its final status) and drains what it published.
+// A failed output write (a full disk) ends it early: the output is lost anyway.
 ReplayRun drive_cycles(core::Acquisition& acq, const drivers::ReplaySource& replay, double speed,
-                       bool quiet) {
+                       bool quiet, const LcmLogSink& sink) {
   struct sigaction sa {};
   sa.sa_handler = on_interrupt;
   sigaction(SIGINT, &sa, nullptr);
@@ -185,7 +237,7 @@ ReplayRun drive_cycles(core::Acquisition& acq, const drivers::ReplaySource& repl
   std::int64_t first_recorded = -1;
   const std::int64_t run_start = mono_now_ns();
   const std::int64_t cpu_start = thread_cpu_now();
-  while (!g_interrupted.load(std::memory_order_relaxed)) {
+  while (!g_interrupted.load(std::memory_order_relaxed) && !sink.failed()) {
     const std::int64_t next = replay.next_sample_mono_ns();
     const std::int64_t t = next >= 0 ? next : last_t;
     if (speed > 0.0 && next >= 0) {
@@ -226,8 +278,8 @@ void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
   if (summary.format == drivers::ReplayFormat::kLcm) {
     std::printf(", channel %s", summary.channel.c_str());
   }
-  std::printf(", run %016llx) -> %s (prefix '%s')\n",
-              static_cast<unsigned long long>(summary.run_id), o.out.c_str(), prefix.c_str());
+  std::printf(", run %s) -> %s (prefix '%s')\n", msg::run_id_text(summary.run_id).c_str(),
+              o.out.c_str(), prefix.c_str());
   std::printf("  config %s, calibration %s\n", o.config.c_str(), cfg.calibration_path.c_str());
   // Cycles per second of wall time, and per second of this thread's CPU
   // time (the figure that does not depend on what else the machine runs).
@@ -260,15 +312,22 @@ void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
         ll(summary.events), ll(summary.frames), ll(summary.bad_lines), ll(summary.samples),
         ll(summary.missing), ll(st.seq_gaps), ll(st.bus_errors));
   }
+}
+
+// Problems in the input, with their place (file:line for candump, the event
+// number for LCM), on stderr even with -q; -v lists every one.
+void report_issues(const drivers::ReplaySource& replay, const std::string& input) {
+  const drivers::ReplayLoadSummary& summary = replay.summary();
+  const auto ll = [](std::int64_t v) { return static_cast<long long>(v); };
   const auto& issues = replay.issues();
   if (!issues.empty()) {
     const std::int64_t total = summary.format == drivers::ReplayFormat::kCandump
                                    ? summary.bad_lines
                                    : static_cast<std::int64_t>(issues.size());
-    std::fprintf(stderr, "exodaq replay: %lld problem(s) in %s:\n", ll(total), o.input.c_str());
-    constexpr std::size_t kShown = 50;
+    std::fprintf(stderr, "exodaq replay: %lld problem(s) in %s:\n", ll(total), input.c_str());
+    const std::size_t kShown = common_options().verbose ? issues.size() : 50;
     for (std::size_t i = 0; i < issues.size() && i < kShown; ++i) {
-      std::fprintf(stderr, "  %s:%lld: %s\n", o.input.c_str(), ll(issues[i].line),
+      std::fprintf(stderr, "  %s:%lld: %s\n", input.c_str(), ll(issues[i].line),
                    issues[i].what.c_str());
     }
     if (total > static_cast<std::int64_t>(kShown)) {
@@ -283,11 +342,15 @@ int run_replay(const ReplayOptions& o) {
     char* end = nullptr;
     speed = std::strtod(o.speed.c_str(), &end);
     if (end == o.speed.c_str() || *end != '\0' || !(speed > 0.0) || !std::isfinite(speed)) {
-      std::fprintf(stderr, "exodaq replay: --speed must be a positive number or 'max', not '%s'\n",
-                   o.speed.c_str());
+      print_error("--speed must be a positive number or 'max', not '" + o.speed + "'");
       return kExitUsage;
     }
   }
+  const std::vector<std::string> inputs{o.input, o.config, o.calibration};
+  files::OutputOptions oo;
+  oo.inputs = inputs;
+  files::check_output(o.out, oo);
+  const std::string format = check_recording(o.input, o.format);
 
   config::ServiceConfig cfg = config::load_service_config(o.config);
   if (!o.calibration.empty()) {
@@ -296,14 +359,18 @@ int run_replay(const ReplayOptions& o) {
   }
   drivers::ReplaySettings replay_settings;
   replay_settings.path = o.input;
-  replay_settings.format = o.format;
+  replay_settings.format = format;
   if (!o.channel.empty()) replay_settings.channel = o.channel;
   replay_settings.speed = speed;
   auto source =
       std::make_unique<drivers::ReplaySource>(replay_settings, config::make_source_context(cfg));
   drivers::ReplaySource* replay = source.get();
   const std::int64_t load_start = mono_now_ns();
-  replay->start();  // loads the input; Acquisition's start() only rewinds
+  try {
+    replay->start();  // loads the input; Acquisition's start() only rewinds
+  } catch (const std::runtime_error& e) {
+    rethrow_without_prefix(e);
+  }
   const double load_s = static_cast<double>(mono_now_ns() - load_start) * 1e-9;
   const drivers::ReplayLoadSummary summary = replay->summary();
 
@@ -316,7 +383,7 @@ int run_replay(const ReplayOptions& o) {
 
   // The daemon's wiring, with the recording as source, a log file as sink,
   // the recording's run_id and no real-time scheduling.
-  auto sink_owner = std::make_unique<LcmLogSink>(o.out);
+  auto sink_owner = std::make_unique<LcmLogSink>(o.out, inputs);
   LcmLogSink* sink = sink_owner.get();
   core::AcquisitionOptions wiring;
   wiring.source = std::move(source);
@@ -328,12 +395,14 @@ int run_replay(const ReplayOptions& o) {
   acq->prepare_for_manual_cycles();
   sink->arm();
 
-  const ReplayRun run = drive_cycles(*acq, *replay, speed, o.quiet);
-  sink->finish();
-  print_report(o, cfg, *replay, prefix, *sink, run, load_s);
+  const bool quiet = common_options().quiet;
+  const ReplayRun run = drive_cycles(*acq, *replay, speed, quiet, *sink);
+  sink->finish();  // throws with the reason when a write failed
+  if (!quiet) print_report(o, cfg, *replay, prefix, *sink, run, load_s);
+  report_issues(*replay, o.input);
   if (g_interrupted.load()) {
-    std::fprintf(stderr, "exodaq replay: interrupted after %lld cycles; %s holds them\n",
-                 static_cast<long long>(run.cycles), o.out.c_str());
+    print_error("interrupted after " + std::to_string(run.cycles) + " cycles; " + o.out +
+                " holds them");
     return kExitFailure;
   }
   return kExitOk;
@@ -341,19 +410,16 @@ int run_replay(const ReplayOptions& o) {
 
 std::function<int()> setup_replay(CLI::App& sub) {
   auto o = std::make_shared<ReplayOptions>();
-  sub.add_option("input", o->input, "recording: lcm-logger log or candump -l file")
-      ->required()
-      ->check(CLI::ExistingFile);
+  sub.add_option("input", o->input, "recording: lcm-logger log or candump -l file")->required();
   sub.add_option("-c,--config", o->config, "service configuration (model, calibration, encoders)")
-      ->required()
-      ->check(CLI::ExistingFile);
+      ->required();
   sub.add_option("-o,--out", o->out, "LCM log to write (all four channels)")->required();
   sub.add_option("--speed", o->speed,
                  "x real time (0.5, 1, 4, ...) or 'max' (no sleeping; default)");
   sub.add_option("--format", o->format, "input format")
       ->check(CLI::IsMember({"auto", "lcm", "candump"}));
-  sub.add_option("--calibration", o->calibration, "calibration file to use instead of the config's")
-      ->check(CLI::ExistingFile);
+  sub.add_option("--calibration", o->calibration,
+                 "calibration file to use instead of the config's");
   sub.add_option("--channel", o->channel,
                  "LCM input: the encoder_raw_t channel (default: the one ending in "
                  "EXO_ENCODER_RAW)");
@@ -361,7 +427,6 @@ std::function<int()> setup_replay(CLI::App& sub) {
       sub.add_option("--prefix", o->prefix,
                      "channel prefix of the output (default: the recording's for LCM input, the "
                      "config's lcm.prefix for candump)");
-  sub.add_flag("-q,--quiet", o->quiet, "no progress bar");
   return [o, prefix] {
     o->prefix_given = prefix->count() > 0;
     return run_replay(*o);

@@ -11,6 +11,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "exodaq/calibration/inputs.hpp"
 #include "exodaq/calibration/python_plot.hpp"
 #include "exodaq/calibration/shoulder_cor.hpp"
+#include "exodaq/common/files.hpp"
 
 namespace exodaq::tools {
 namespace {
@@ -144,9 +146,8 @@ void print_result(const cal::CorResult& r, const CorCommandOptions& o) {
             << " mm (seed 001 Table I, macaque: cranial 53, ventral 37, lateral 34 mm)\n";
 }
 
-void write_csv(const std::string& path, const cal::CorResult& r) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot write the bins CSV");
+void write_csv(const std::string& path, const cal::CorResult& r, const std::string& input) {
+  std::ostringstream out;
   out << "bin,elevation_lo_deg,elevation_hi_deg,mean_elevation_deg,frames,pairs,axes,outliers,"
          "valid,x_mm,y_mm,z_mm,vertical_mm,horizontal_mm,axis_rms_mm\n";
   for (std::size_t k = 0; k < r.bins.size(); ++k) {
@@ -161,6 +162,9 @@ void write_csv(const std::string& path, const cal::CorResult& r) {
     }
     out << "\n";
   }
+  files::OutputOptions oo;
+  oo.inputs = {input};
+  files::write_output(path, out.str(), oo);
 }
 
 void write_outputs(const CorCommandOptions& o, const cal::CorResult& r) {
@@ -170,7 +174,7 @@ void write_outputs(const CorCommandOptions& o, const cal::CorResult& r) {
     csv = (dot == std::string::npos ? o.plot : o.plot.substr(0, dot)) + "_bins.csv";
   }
   if (csv.empty()) return;
-  write_csv(csv, r);
+  write_csv(csv, r, o.markers);
   std::cout << "bins written to " << csv << "\n";
   if (o.plot.empty()) return;
   const std::string script =
@@ -179,7 +183,7 @@ void write_outputs(const CorCommandOptions& o, const cal::CorResult& r) {
   if (script.empty()) {
     message = "figure skipped: plot_shoulder_cor.py not found (set EXODAQ_SHOULDER_COR_PLOT)";
   } else {
-    cal::run_plot_script(script, {csv, o.plot}, message);
+    cal::run_plot_script(script, {csv}, o.plot, message, {o.markers, csv});
   }
   std::cout << message << "\n";
 }
@@ -247,7 +251,7 @@ EXODAQ_REGISTER_COMMAND(
         try {
           return run_shoulder_cor(*o);
         } catch (const std::exception& e) {
-          std::fprintf(stderr, "exodaq shoulder-cor: %s\n", e.what());
+          print_error(e.what());
           return kExitUsage;
         }
       };

@@ -1,24 +1,33 @@
-// `exodaq status`: waits for one EXO_STATUS message and prints it for people.
-// Exit 0 when one arrived, 1 when none did within --timeout.
+// `exodaq status`: waits for one EXO_STATUS message and prints it for people
+// (or, with --json, as one JSON object in the CSV schema's names). Exit 0 when
+// one arrived, 1 when none did within --timeout.
 #include <cstdio>
 #include <ctime>
 #include <optional>
 #include <string>
 
+#include "clock_text.hpp"
 #include "command.hpp"
 #include "exodaq/common/clock_now.hpp"
+#include "exodaq/config/service_config.hpp"
 #include "exodaq/messages/channels.hpp"
-#include "exodaq/messages/fields.hpp"
+#include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/subscriber.hpp"
+#include "json_out.hpp"
 
 namespace exodaq::tools {
 namespace {
 
 struct StatusOptions {
+  std::string config;
   std::string prefix;
+  bool prefix_given = false;
   std::string url = msg::kDefaultUrl;
+  bool url_given = false;
   double timeout = 3.0;  // s; status comes at 10 Hz
+  bool json = false;
+  std::optional<config::RequireSync> clock_policy;  // from --config
 };
 
 std::string utc_time(int64_t utime) {
@@ -33,10 +42,11 @@ std::string utc_time(int64_t utime) {
   return out;
 }
 
-void print_status(const std::string& channel, const status_t& s, int64_t recv_utime) {
+void print_status(const std::string& channel, const status_t& s, int64_t recv_utime,
+                  const StatusOptions& o) {
   auto ll = [](int64_t v) { return static_cast<long long>(v); };
-  std::printf("%s  rig '%s'  source %s  run %016llx\n", channel.c_str(), s.rig.c_str(),
-              s.source.c_str(), static_cast<unsigned long long>(s.run_id));
+  std::printf("%s  rig '%s'  source %s  run %s\n", channel.c_str(), s.rig.c_str(), s.source.c_str(),
+              msg::run_id_text(s.run_id).c_str());
   std::printf("state    %s  \"%s\"\n", std::string(msg::state_name(s.state)).c_str(),
               s.message.c_str());
   std::printf("time     %s  (received %.3f s later)  seq %lld  cycles %lld\n",
@@ -60,10 +70,11 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
       "overflows %lld\n",
       ll(s.seq_gaps), ll(s.duplicates), ll(s.out_of_order), ll(s.bus_errors), ll(s.rx_overflows));
   std::printf(
-      "clock    %s  est error %.1f us  max error %.1f us  offset %.1f us  utime correction "
-      "%.1f us  steps %lld\n",
-      s.clock_synchronised ? "synchronised" : "NOT SYNCHRONISED", s.clock_est_error_us,
-      s.clock_max_error_us, s.clock_offset_us, s.utime_correction_us, ll(s.clock_steps));
+      "clock    %s  est error %s  max error %s  offset %.1f us  utime correction %.1f us  steps "
+      "%lld\n",
+      clock_state_text(s, o.clock_policy).c_str(), clock_error_text(s.clock_est_error_us).c_str(),
+      clock_error_text(s.clock_max_error_us).c_str(), s.clock_offset_us, s.utime_correction_us,
+      ll(s.clock_steps));
   std::printf("%-20s %-9s %8s %8s %8s %8s  %s\n", "joint", "homing", "glitch", "lost", "stale",
               "range", "flags (window)");
   for (int i = 0; i < 6; ++i) {
@@ -74,7 +85,30 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
   }
 }
 
-int run_status(const StatusOptions& opt) {
+// One JSON object: the channel, then every column of the CSV schema under
+// its name (numbers as numbers, text as strings).
+void print_json(const std::string& channel, const status_t& s) {
+  const msg::Message m{s};
+  const auto names = msg::csv::header(msg::Kind::kStatus, msg::csv::joints_of(m));
+  std::vector<std::string> values;
+  msg::csv::append_values(m, values);
+  std::string out = "{\n  \"channel\": " + json_string(channel);
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const bool text =
+        names[i] == "rig" || names[i] == "message" || names[i] == "source" || names[i] == "run_id";
+    out += ",\n  " + json_string(names[i]) + ": " +
+           (text ? json_string(values[i]) : json_value(values[i]));
+  }
+  std::printf("%s\n}\n", out.c_str());
+}
+
+int run_status(StatusOptions opt) {
+  if (!opt.config.empty()) {
+    const config::ServiceConfig cfg = config::load_service_config(opt.config);
+    if (!opt.url_given) opt.url = cfg.lcm.url;
+    if (!opt.prefix_given) opt.prefix = cfg.lcm.prefix;
+    opt.clock_policy = cfg.clock.require_sync;
+  }
   const std::string channel = msg::channel_name(opt.prefix, msg::Kind::kStatus);
   msg::Subscriber subscriber(opt.url);
   std::optional<msg::Received> got;
@@ -87,26 +121,34 @@ int run_status(const StatusOptions& opt) {
     if (left <= 0) break;
     const int r = subscriber.handle(static_cast<int>(std::max<int64_t>(1, left / 1'000'000)));
     if (r < 0) {
-      std::fprintf(stderr, "exodaq status: LCM receive failed\n");
+      print_error("LCM receive failed");
       return kExitFailure;
     }
   }
   if (!got) {
-    std::fprintf(stderr,
-                 "exodaq status: no %s message on %s within %g s (is exodaqd running, with "
-                 "this prefix and URL?)\n",
-                 channel.c_str(), opt.url.c_str(), opt.timeout);
+    print_error("no " + channel + " message on " + opt.url + " within " +
+                msg::csv::number(opt.timeout) +
+                " s (is exodaqd running, with this prefix and URL?)");
     return kExitFailure;
   }
-  print_status(got->channel, std::get<status_t>(got->msg), got->recv_utime);
-  std::fflush(stdout);
+  if (opt.json) {
+    print_json(got->channel, std::get<status_t>(got->msg));
+  } else {
+    print_status(got->channel, std::get<status_t>(got->msg), got->recv_utime, opt);
+  }
   return kExitOk;
 }
 
 std::function<int()> setup_status(CLI::App& app) {
   auto opt = std::make_shared<StatusOptions>();
-  app.add_option("--prefix,-p", opt->prefix, "channel prefix of the rig (config lcm.prefix)");
-  app.add_option("--url,-u", opt->url, "LCM URL")->capture_default_str();
+  app.add_option("-c,--config", opt->config,
+                 "the daemon's service config: LCM URL, prefix and clock policy from it");
+  app.add_option("--prefix,-p", opt->prefix, "channel prefix of the rig (config lcm.prefix)")
+      ->each([opt](const std::string&) { opt->prefix_given = true; });
+  app.add_option("--url,-u", opt->url, "LCM URL")
+      ->capture_default_str()
+      ->each([opt](const std::string&) { opt->url_given = true; });
+  app.add_flag("--json", opt->json, "print the status as one JSON object");
   app.add_option("--timeout,-t", opt->timeout, "seconds to wait for a status message")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);

@@ -34,6 +34,7 @@ double std_given(const Eigen::MatrixXd& J, const std::vector<int>& kept, int col
 // the weakest singular direction.
 int weakest_kept(const Eigen::MatrixXd& J, const std::vector<int>& kept, double sigma_mm,
                  const IdentifiabilityOptions& o) {
+  if (kept.empty()) return -1;  // an SVD of no columns is undefined in Eigen
   Eigen::MatrixXd Ks = columns(J, kept);
   for (Eigen::Index k = 0; k < Ks.cols(); ++k) Ks.col(k) *= tolerance(o, kept[k]);
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(Ks, Eigen::ComputeThinV);
@@ -188,6 +189,7 @@ std::vector<int> unobservable(const Eigen::MatrixXd& J, const ColumnMask& candid
 
 std::vector<double> scaled_singular_values(const Eigen::MatrixXd& J, const std::vector<int>& est,
                                            const IdentifiabilityOptions& o) {
+  if (est.empty()) return {};
   Eigen::MatrixXd K = columns(J, est);
   for (Eigen::Index k = 0; k < K.cols(); ++k) K.col(k) *= tolerance(o, est[k]);
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(K);

@@ -10,21 +10,25 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "encoder_logs.hpp"
+#include "exodaq/common/files.hpp"
 #include "exodaq/config/yaml_reader.hpp"
 
 namespace exodaq::calibration {
 
 using config::ConfigError;
 
-namespace {
+namespace {}  // namespace
 
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ConfigError(path, 0, std::string("cannot open: ") + std::strerror(errno));
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
+std::string detail::read_csv_text(const std::string& path) {
+  try {
+    return files::read_input(path, files::kMaxCsvBytes);
+  } catch (const files::FileError& e) {
+    throw ConfigError(path, 0, e.reason());
+  }
 }
+
+namespace {
 
 std::string trim(const std::string& s) {
   const auto b = s.find_first_not_of(" \t\r");
@@ -125,9 +129,18 @@ const std::vector<std::string> kMarkerOptional = {"marker_id"};
 
 }  // namespace
 
-EncoderSeries EncoderCsvReader::parse(const std::string& text, const std::string& name) const {
+EncoderSeries EncoderCsvReader::parse(const std::string& text, const std::string& name,
+                                      const EncoderReadOptions& o) const {
   const auto lines = csv_lines(text);
   if (lines.empty()) throw ConfigError(name, 0, "empty file (no header)");
+  const auto& head = lines[0].fields;
+  if (std::find(head.begin(), head.end(), "run_id") != head.end() &&
+      std::find(head.begin(), head.end(), "mono_ns") != head.end()) {
+    std::vector<detail::CsvRow> rows;
+    rows.reserve(lines.size());
+    for (const auto& l : lines) rows.push_back({l.number, l.fields});
+    return detail::parse_export_csv(rows, name, o);
+  }
   const auto cols = header(lines[0], name, kEncoderRequired, kEncoderOptional);
   EncoderSeries out;
   out.source = name;
@@ -169,18 +182,8 @@ EncoderSeries EncoderCsvReader::parse(const std::string& text, const std::string
   return out;
 }
 
-EncoderSeries EncoderCsvReader::read(const std::string& path) const {
-  return parse(read_text(path), path);
-}
-
-EncoderSeries read_encoder_log(const std::string& path) {
-  const auto dot = path.rfind('.');
-  const std::string ext = dot == std::string::npos ? "" : path.substr(dot + 1);
-  if (ext == "csv" || ext == "CSV") return EncoderCsvReader().read(path);
-  throw ConfigError(path, 0,
-                    "unsupported encoder log format '." + ext +
-                        "': give a CSV (utime_us,j1_rad..j6_rad[,homed_mask,fault_mask]; "
-                        "docs/calibration.md). LCM logs are read once replay support lands.");
+EncoderSeries EncoderCsvReader::read(const std::string& path, const EncoderReadOptions& o) const {
+  return parse(detail::read_csv_text(path), path, o);
 }
 
 namespace {
@@ -402,7 +405,7 @@ MarkerSeries parse_marker_csv(const std::string& text, const std::string& name, 
 }
 
 MarkerSeries read_marker_csv(const std::string& path, int marker_id) {
-  return parse_marker_csv(read_text(path), path, marker_id);
+  return parse_marker_csv(detail::read_csv_text(path), path, marker_id);
 }
 
 MarkerSeries parse_marker_csv_ids(const std::string& text, const std::string& name,
@@ -414,7 +417,7 @@ MarkerSeries parse_marker_csv_ids(const std::string& text, const std::string& na
 }
 
 MarkerSeries read_marker_csv_ids(const std::string& path, const std::vector<int>& ids) {
-  return parse_marker_csv_ids(read_text(path), path, ids);
+  return parse_marker_csv_ids(detail::read_csv_text(path), path, ids);
 }
 
 std::vector<AlignedSample> align(const EncoderSeries& enc, const MarkerSeries& markers,

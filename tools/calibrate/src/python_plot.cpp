@@ -2,8 +2,12 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+
+#include "exodaq/common/files.hpp"
 
 #ifndef EXODAQ_CALIBRATE_SCRIPT_DIR
 #define EXODAQ_CALIBRATE_SCRIPT_DIR ""
@@ -52,18 +56,39 @@ std::string find_plot_script(const char* env_var, const std::string& file_name) 
 }
 
 bool run_plot_script(const std::string& script, const std::vector<std::string>& args,
-                     std::string& message) {
+                     const std::string& png, std::string& message,
+                     const std::vector<std::string>& inputs) {
   const std::string python = python_with_matplotlib();
   if (python.empty()) {
     message = "figure skipped: no python3 with matplotlib (apt install python3-matplotlib)";
     return false;
   }
+  files::OutputOptions oo;
+  oo.inputs = inputs;
+  files::check_output(png, oo);
+  const char* tmp = std::getenv("TMPDIR");
+  std::string dir =
+      std::string(tmp != nullptr && *tmp != '\0' ? tmp : "/tmp") + "/exodaq-fig-XXXXXX";
+  if (::mkdtemp(dir.data()) == nullptr) {
+    message = "figure skipped: cannot create a temporary folder: " + files::errno_text(errno);
+    return false;
+  }
+  struct Cleanup {
+    std::string dir;
+    ~Cleanup() {
+      std::error_code ec;
+      std::filesystem::remove_all(dir, ec);
+    }
+  } cleanup{dir};
+  const std::string staged = dir + "/figure.png";
   std::string cmd = python + " " + quote_shell(script);
   for (const auto& a : args) cmd += " " + quote_shell(a);
+  cmd += " " + quote_shell(staged);
   if (std::system(cmd.c_str()) != 0) {
     message = "figure skipped: " + cmd + " failed";
     return false;
   }
+  files::write_output(png, files::read_input(staged, -1), oo);
   return true;
 }
 

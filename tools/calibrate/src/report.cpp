@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "exodaq/calibration/python_plot.hpp"
+#include "exodaq/common/files.hpp"
 #include "exodaq/config/yaml_reader.hpp"
 
 namespace exodaq::calibration {
@@ -164,9 +165,9 @@ void print_report(std::ostream& o, const Report& r, const std::vector<Validation
 
 void write_residual_csv(const std::string& path, const std::vector<std::int64_t>& train_utime,
                         const Report& r, const std::vector<ValidationResult>& val,
-                        const std::vector<std::vector<std::int64_t>>& val_utime) {
-  std::ofstream out(path);
-  if (!out) throw config::ConfigError(path, 0, "cannot write the residual CSV");
+                        const std::vector<std::vector<std::int64_t>>& val_utime,
+                        const std::vector<std::string>& inputs) {
+  std::ostringstream out;
   out << "set,index,utime_us,before_x_mm,before_y_mm,before_z_mm,before_mm,after_x_mm,after_y_mm,"
          "after_z_mm,after_mm\n";
   auto rows = [&](const std::string& set, const std::vector<std::int64_t>& t,
@@ -186,15 +187,19 @@ void write_residual_csv(const std::string& path, const std::vector<std::int64_t>
          k < val_utime.size() ? val_utime[k] : std::vector<std::int64_t>{}, val[k].residual_before,
          val[k].residual_after);
   }
+  files::OutputOptions oo;
+  oo.inputs = inputs;
+  files::write_output(path, out.str(), oo);
 }
 
-bool plot_residuals(const std::string& csv, const std::string& png, std::string& message) {
+bool plot_residuals(const std::string& csv, const std::string& png, std::string& message,
+                    const std::vector<std::string>& inputs) {
   const std::string script = find_plot_script("EXODAQ_CALIBRATE_PLOT", "plot_residuals.py");
   if (script.empty()) {
     message = "figure skipped: plot_residuals.py not found (set EXODAQ_CALIBRATE_PLOT)";
     return false;
   }
-  if (!run_plot_script(script, {csv, png}, message)) return false;
+  if (!run_plot_script(script, {csv}, png, message, inputs)) return false;
   message = "residual figure written to " + png;
   return true;
 }

@@ -456,6 +456,16 @@ Report calibrate(const NominalModel& model, const std::vector<AlignedSample>& po
 
   solve_stage(P, s, bounds, options, "all free", rep);  // stage 1: what the bounds leave free
   hold_unobservable(P, s, bounds, options, rep);
+  if (s.free_count() == 0) {
+    // Every free parameter judged unidentifiable: the residual is far above
+    // any noise, so the data do not fit the model at all.
+    const ErrorStats fit = evaluate(model, s.x, points, nullptr);
+    throw std::runtime_error(
+        "no parameter is identifiable from these data: the best fit leaves " +
+        fmt("%.1f", fit.rms_m * kMToMm) +
+        " mm RMS; do the encoder angles and the markers belong together (the clocks, the "
+        "recorded calibration, the marker ids)?");
+  }
   mark_active_bounds(s, bounds);
   final_residuals(P, s, rep);
   const auto per_marker = residuals_per_marker(points, rep.residual_after);

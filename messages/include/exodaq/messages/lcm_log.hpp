@@ -14,6 +14,10 @@
 #include <string_view>
 #include <vector>
 
+namespace exodaq::files {
+class OutputFile;
+}
+
 namespace exodaq::msg {
 
 inline constexpr std::uint32_t kLcmLogMagic = 0xEDA1DA01U;
@@ -49,8 +53,9 @@ struct LogDamage {
 
 class LogReader {
  public:
-  // Throws LogError: unreadable, not a regular file, or not an LCM log (the
-  // message shows the first bytes); an empty file is "empty file".
+  // Throws LogError: unreadable, not a regular file (checked before reading:
+  // a FIFO does not block), or not an LCM log (the message shows the first
+  // bytes); an empty file is "empty file, not an LCM log".
   explicit LogReader(const std::string& path);
   ~LogReader();
   LogReader(const LogReader&) = delete;
@@ -88,18 +93,22 @@ class LogReader {
   std::vector<LogDamage> damage_;
 };
 
+// Writes through a files::OutputFile: the log appears at `path` only when
+// close() succeeds; until then, and after any error, `path` is untouched.
 class LogWriter {
  public:
-  // Creates (truncates) `path`; throws LogError with errno's reason.
-  explicit LogWriter(const std::string& path);
-  ~LogWriter();  // closes; errors there are lost: call close() to see them
+  // Checks `path` as an output (a regular file or none, not one of `inputs`);
+  // throws LogError with the reason.
+  explicit LogWriter(const std::string& path, const std::vector<std::string>& inputs = {});
+  ~LogWriter();  // without close(): nothing is written
   LogWriter(const LogWriter&) = delete;
   LogWriter& operator=(const LogWriter&) = delete;
 
   // Appends one event (numbered 0, 1, ...). Throws LogError.
   void write(std::string_view channel, std::int64_t timestamp_us, const void* data,
              std::size_t size);
-  // Flushes and closes; throws LogError with the reason when anything failed.
+  // Flushes, fsyncs and puts the file in place; throws LogError with errno's
+  // reason when anything failed (nothing is left at `path` then).
   void close();
   std::int64_t events() const noexcept { return number_; }
 
@@ -108,7 +117,7 @@ class LogWriter {
   void write_all(const void* data, std::size_t size);
 
   std::string path_;
-  int fd_ = -1;
+  std::unique_ptr<files::OutputFile> out_;
   std::int64_t number_ = 0;
   std::vector<std::uint8_t> buffer_;  // events not yet written, written in large chunks
   std::size_t buffered_ = 0;

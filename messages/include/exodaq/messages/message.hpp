@@ -4,7 +4,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <string>
+#include <string_view>
 #include <variant>
+#include <vector>
 
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
@@ -35,6 +38,15 @@ bool decode_into(T& msg, const void* data, std::size_t size) noexcept {
   }
 }
 
+// One message's encoded bytes (tools and tests; the loop encodes into its
+// pre-allocated slots instead).
+template <typename T>
+std::vector<std::uint8_t> encode(const T& msg) {
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(msg.getEncodedSize()));
+  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+
 // Common header of every message.
 struct Stamp {
   std::int64_t utime = 0;
@@ -43,6 +55,12 @@ struct Stamp {
   std::int64_t run_id = 0;
 };
 Stamp stamp_of(const Message& m) noexcept;
+
+// The run id as every tool, log line and CSV spells it: the 64 bits as 16
+// lower-case hex digits ("1f3a09c2d4e5b6a7"; docs/messages.md).
+std::string run_id_text(std::int64_t run_id);
+// run_id_text() read back; nullopt unless exactly 16 hex digits.
+std::optional<std::int64_t> parse_run_id(std::string_view text);
 
 // The daemon encodes every type once, all zero, before its first cycle (so
 // lcm-gen's hashes are initialised off the loop); recordings hold them.

@@ -67,9 +67,12 @@ Calibration load_calibration_text(const std::string& text, const std::string& na
 // The exact text load_calibration_text() reads back (numbers with enough digits
 // to round-trip doubles).
 std::string calibration_to_yaml(const Calibration& cal);
-// Writes calibration_to_yaml() to `path` (via a temporary file and rename, so a
-// running daemon never sees half a file). Throws ConfigError when it cannot.
-void write_calibration_file(const std::string& path, const Calibration& cal);
+// Writes calibration_to_yaml() to `path` as a files::OutputFile (a temporary
+// file beside it, fsync'ed and renamed: a running daemon never sees half a
+// file; a symlink is followed; `inputs` are never replaced). Throws
+// ConfigError "path: what" with errno's reason when it cannot.
+void write_calibration_file(const std::string& path, const Calibration& cal,
+                            const std::vector<std::string>& inputs = {});
 
 // The nominal chain with Δζ and Δpᴹ applied: joints 2, 3, 5 (1-based) get
 // Δd2, Δd3, Δd5 added to dh.d, joints 3 and 5 Δa3, Δa5 added to dh.a, and the

@@ -1,8 +1,10 @@
 #pragma once
 // Inputs of `exodaq calibrate` (docs/calibration.md): the encoder stream (joint
 // angles relative to the index, θᴿ of seed 000 eq. 4, with homed and fault
-// masks) and the motion-capture marker stream, and their alignment by the
-// NTP-aligned timestamps. Errors are config::ConfigError "file:line: what".
+// masks; from calibrate's CSV, `exodaq export`'s CSV or an LCM log) and the
+// motion-capture marker stream, and their alignment by the NTP-aligned
+// timestamps. Errors are config::ConfigError "file:line: what". Files are
+// read as files::read_input (regular files within kMaxCsvBytes).
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -30,28 +32,42 @@ struct EncoderSample {
 struct EncoderSeries {
   std::string source;                  // file name, for messages and provenance
   std::vector<EncoderSample> samples;  // strictly increasing utime
+  std::vector<std::string> notes;      // what the reader skipped or assumed, for people
 };
 
-// A reader of one encoder-log format. CSV now; the LCM-log reader (issue
-// "Record, replay and look at recordings") implements the same interface.
-class EncoderLogReader {
+// How to read encoder angles from the project's own recordings, which hold
+// calibrated angles θ = Δθ⁰ + θᴿ (joint_state_t.position, the `<joint>_rad`
+// columns of `exodaq export`): θᴿ = θ − Δθ⁰ of the calibration they were
+// computed with.
+struct EncoderReadOptions {
+  std::optional<std::array<double, kJoints>> recorded_offsets_rad;
+  std::string recorded_calibration;   // where those offsets come from, for messages
+  std::optional<std::string> prefix;  // LCM logs: the rig's channel prefix (default: the only one)
+};
+
+// Encoder CSV, either dialect, told apart by the header:
+//  - calibrate's own: `utime_us,j1_rad,...,j6_rad[,homed_mask][,fault_mask]`
+//    (θᴿ; any column order, '#' comments, blank lines ignored; missing mask
+//    columns mean "all homed, no fault"; unknown columns are errors);
+//  - `exodaq export`'s (docs/messages.md "CSV"; has run_id and mono_ns):
+//    the six `<joint>_rad` columns less the recorded offsets (required),
+//    `<joint>_homed`, and as faults any `<joint>_flags` bit but HELD and
+//    UNHOMED, every joint of a SAMPLE_MISSING cycle; other columns ignored.
+// Rows must have strictly increasing utime_us.
+class EncoderCsvReader {
  public:
-  virtual ~EncoderLogReader() = default;
-  virtual EncoderSeries read(const std::string& path) const = 0;
+  EncoderSeries read(const std::string& path, const EncoderReadOptions& o = {}) const;
+  EncoderSeries parse(const std::string& text, const std::string& name,
+                      const EncoderReadOptions& o = {}) const;
 };
 
-// CSV: header `utime_us,j1_rad,...,j6_rad[,homed_mask][,fault_mask]` (any column
-// order, '#' comments, blank lines ignored). Missing mask columns mean "all
-// homed, no fault". Rows must have strictly increasing utime_us.
-class EncoderCsvReader final : public EncoderLogReader {
- public:
-  EncoderSeries read(const std::string& path) const override;
-  EncoderSeries parse(const std::string& text, const std::string& name) const;
-};
+// An LCM log (lcm-logger, exodaq replay): the joint_state_t messages of one
+// rig, read as `exodaq export`'s rows are. Needs the recorded offsets.
+EncoderSeries read_joint_state_log(const std::string& path, const EncoderReadOptions& o);
 
-// Picks the reader by the file's extension (.csv). Throws ConfigError naming the
-// supported formats otherwise.
-EncoderSeries read_encoder_log(const std::string& path);
+// By content: an LCM log (magic number) or a CSV of either dialect. Errors
+// are ConfigError "file[:line]: what".
+EncoderSeries read_encoder_log(const std::string& path, const EncoderReadOptions& o = {});
 
 struct MarkerSample {
   std::int64_t utime_us = 0;

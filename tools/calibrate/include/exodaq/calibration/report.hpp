@@ -26,13 +26,17 @@ void print_report(std::ostream& o, const Report& r,
                   const std::vector<ValidationResult>& validation);
 
 // CSV: set,index,utime_us,before_x_mm,before_y_mm,before_z_mm,before_mm,after_x_mm,...,after_mm
+// Written as a files::OutputFile (never one of `inputs`); throws files::FileError.
 void write_residual_csv(const std::string& path, const std::vector<std::int64_t>& train_utime,
                         const Report& r, const std::vector<ValidationResult>& validation,
-                        const std::vector<std::vector<std::int64_t>>& validation_utime);
+                        const std::vector<std::vector<std::int64_t>>& validation_utime,
+                        const std::vector<std::string>& inputs = {});
 
 // Runs tools/calibrate/plot_residuals.py (installed next to the binary or in the
-// source tree) on the CSV. Returns false with `message` set when Python or
-// matplotlib is missing; the calibration itself is unaffected.
-bool plot_residuals(const std::string& csv, const std::string& png, std::string& message);
+// source tree) on the CSV (run_plot_script: the PNG is written whole or not at
+// all). Returns false with `message` set when Python or matplotlib is
+// missing; the calibration itself is unaffected.
+bool plot_residuals(const std::string& csv, const std::string& png, std::string& message,
+                    const std::vector<std::string>& inputs = {});
 
 }  // namespace exodaq::calibration

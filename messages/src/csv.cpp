@@ -1,0 +1,310 @@
+#include "exodaq/messages/csv.hpp"
+
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <set>
+#include <type_traits>
+#include <variant>
+
+namespace exodaq::msg::csv {
+
+namespace {
+
+std::string num(std::int64_t v) {
+  return std::to_string(v);
+}
+
+void add_stamp(std::vector<std::string>& h) {
+  for (const char* c : {"utime_us", "mono_ns", "seq", "run_id"}) h.emplace_back(c);
+}
+
+template <typename T>
+void append_stamp(const T& m, std::vector<std::string>& out) {
+  out.push_back(num(m.utime));
+  out.push_back(num(m.mono_ns));
+  out.push_back(num(m.seq));
+  out.push_back(run_id_text(m.run_id));
+}
+
+void per_joint(std::vector<std::string>& h, const JointNames& joints, std::string_view suffix) {
+  for (const auto& j : joints) h.push_back(j + std::string(suffix));
+}
+
+template <typename T, std::size_t N, typename F>
+void each(const T (&a)[N], std::vector<std::string>& out, F f) {
+  for (std::size_t i = 0; i < N; ++i) out.push_back(f(a[i]));
+}
+
+const auto kNum = [](auto v) { return num(v); };
+const auto kDbl = [](double v) { return number(v); };
+const auto kBool = [](std::int8_t v) { return std::string(v ? "1" : "0"); };
+
+// joint_state_t
+void joint_header(std::vector<std::string>& h, const JointNames& j) {
+  per_joint(h, j, kPositionSuffix);
+  per_joint(h, j, kVelocitySuffix);
+  per_joint(h, j, kCountSuffix);
+  per_joint(h, j, kHomedSuffix);
+  per_joint(h, j, kFlagsSuffix);
+  h.emplace_back("sample_flags");
+}
+
+void joint_values(const joint_state_t& m, std::vector<std::string>& out) {
+  each(m.position, out, kDbl);
+  each(m.velocity, out, kDbl);
+  each(m.raw_count, out, kNum);
+  each(m.homed, out, kBool);
+  each(m.flags, out, kNum);
+  out.push_back(num(m.sample_flags));
+}
+
+// palm_pose_t
+constexpr const char* kPalmColumns[] = {"palm_x_m",      "palm_y_m",       "palm_z_m",
+                                        "palm_qw",       "palm_qx",        "palm_qy",
+                                        "palm_qz",       "elbow_x_m",      "elbow_y_m",
+                                        "elbow_z_m",     "manipulability", "manipulability_raw",
+                                        "near_singular", "palm_valid",     "palm_invalid_reason"};
+constexpr std::size_t kPalmCount = sizeof kPalmColumns / sizeof kPalmColumns[0];
+
+void palm_values(const palm_pose_t& m, std::vector<std::string>& out) {
+  each(m.position, out, kDbl);
+  each(m.orientation, out, kDbl);
+  each(m.elbow, out, kDbl);
+  out.push_back(number(m.shoulder_manipulability));
+  out.push_back(number(m.shoulder_manipulability_raw));
+  out.push_back(kBool(m.near_singular));
+  out.push_back(kBool(m.valid));
+  out.push_back(num(m.invalid_reason));
+}
+
+// encoder_raw_t: arrays by board channel.
+void raw_header(std::vector<std::string>& h) {
+  h.emplace_back("present");
+  h.emplace_back("board_seq");
+  for (const char* f : {"count16_ch", "index_count16_ch"}) {
+    for (int c = 0; c < kJoints; ++c) h.push_back(f + std::to_string(c));
+  }
+  for (const char* c : {"index_latched", "index_count_valid", "board_state", "board_errors",
+                        "source_flags", "wall_ns"}) {
+    h.emplace_back(c);
+  }
+}
+
+void raw_values(const encoder_raw_t& m, std::vector<std::string>& out) {
+  out.push_back(kBool(m.present));
+  out.push_back(num(m.board_seq));
+  each(m.count16, out, kNum);
+  each(m.index_count16, out, kNum);
+  for (const std::int64_t v : {std::int64_t{m.index_latched}, std::int64_t{m.index_count_valid},
+                               std::int64_t{m.board_state}, std::int64_t{m.board_errors},
+                               std::int64_t{m.source_flags}, m.wall_ns}) {
+    out.push_back(num(v));
+  }
+}
+
+// status_t
+constexpr const char* kStatusTimingColumns[] = {
+    "period_p50_us",   "period_p99_us", "period_max_us", "lateness_p50_us", "lateness_p99_us",
+    "lateness_max_us", "work_p50_us",   "work_p99_us",   "work_max_us"};
+constexpr const char* kStatusCounterColumns[] = {"overruns",
+                                                 "cycles",
+                                                 "publish_failures",
+                                                 "source",
+                                                 "frames",
+                                                 "bad_frames",
+                                                 "missing_samples",
+                                                 "seq_gaps",
+                                                 "duplicates",
+                                                 "out_of_order",
+                                                 "bus_errors",
+                                                 "rx_overflows",
+                                                 "bus_state",
+                                                 "board_errors",
+                                                 "clock_synchronised",
+                                                 "clock_est_error_us",
+                                                 "clock_max_error_us",
+                                                 "clock_offset_us",
+                                                 "utime_correction_us",
+                                                 "clock_steps"};
+constexpr const char* kStatusJointSuffixes[] = {"_homing",       "_flags",
+                                                "_glitches",     "_lost_count_events",
+                                                "_stale_events", "_out_of_range_events"};
+
+void status_header(std::vector<std::string>& h, const JointNames& j) {
+  for (const char* c : {"rig", "state", "message", "window_cycles"}) h.emplace_back(c);
+  for (const char* c : kStatusTimingColumns) h.emplace_back(c);
+  for (const char* c : kStatusCounterColumns) h.emplace_back(c);
+  for (const char* s : kStatusJointSuffixes) per_joint(h, j, s);
+}
+
+void status_values(const status_t& m, std::vector<std::string>& out) {
+  out.push_back(m.rig);
+  out.push_back(num(m.state));
+  out.push_back(m.message);
+  out.push_back(num(m.window_cycles));
+  for (const double v :
+       {m.period_p50_us, m.period_p99_us, m.period_max_us, m.lateness_p50_us, m.lateness_p99_us,
+        m.lateness_max_us, m.work_p50_us, m.work_p99_us, m.work_max_us}) {
+    out.push_back(number(v));
+  }
+  for (const std::int64_t v : {m.overruns, m.cycles, m.publish_failures}) out.push_back(num(v));
+  out.push_back(m.source);
+  for (const std::int64_t v : {m.frames, m.bad_frames, m.missing_samples, m.seq_gaps, m.duplicates,
+                               m.out_of_order, m.bus_errors, m.rx_overflows}) {
+    out.push_back(num(v));
+  }
+  out.push_back(num(m.bus_state));
+  out.push_back(num(m.board_errors));
+  out.push_back(kBool(m.clock_synchronised));
+  for (const double v :
+       {m.clock_est_error_us, m.clock_max_error_us, m.clock_offset_us, m.utime_correction_us}) {
+    out.push_back(number(v));
+  }
+  out.push_back(num(m.clock_steps));
+  each(m.homing, out, kNum);
+  each(m.joint_flags, out, kNum);
+  each(m.glitches, out, kNum);
+  each(m.lost_count_events, out, kNum);
+  each(m.stale_events, out, kNum);
+  each(m.out_of_range_events, out, kNum);
+}
+
+}  // namespace
+
+JointNames joint_columns(const std::string (&names)[kJoints]) {
+  JointNames out;
+  std::set<std::string> seen;
+  for (int i = 0; i < kJoints; ++i) {
+    std::string c = names[i];
+    for (char& ch : c) {
+      if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '_') ch = '_';
+    }
+    if (c.empty() || !seen.insert(c).second) c = "joint" + std::to_string(i + 1);
+    out[static_cast<std::size_t>(i)] = c;
+  }
+  return out;
+}
+
+JointNames numbered_joints() {
+  JointNames out;
+  for (int i = 0; i < kJoints; ++i)
+    out[static_cast<std::size_t>(i)] = "joint" + std::to_string(i + 1);
+  return out;
+}
+
+std::vector<std::string> header(Kind k, const JointNames& joints) {
+  std::vector<std::string> h;
+  add_stamp(h);
+  switch (k) {
+    case Kind::kJointState:
+      joint_header(h, joints);
+      break;
+    case Kind::kPalmPose:
+      h.insert(h.end(), std::begin(kPalmColumns), std::end(kPalmColumns));
+      break;
+    case Kind::kEncoderRaw:
+      raw_header(h);
+      break;
+    case Kind::kStatus:
+      status_header(h, joints);
+      break;
+  }
+  return h;
+}
+
+JointNames joints_of(const Message& m) {
+  if (const auto* j = std::get_if<joint_state_t>(&m)) return joint_columns(j->name);
+  if (const auto* s = std::get_if<status_t>(&m)) return joint_columns(s->joint_name);
+  return numbered_joints();
+}
+
+void append_values(const Message& m, std::vector<std::string>& out) {
+  std::visit(
+      [&out](const auto& v) {
+        using T = std::decay_t<decltype(v)>;
+        append_stamp(v, out);
+        if constexpr (std::is_same_v<T, joint_state_t>) joint_values(v, out);
+        if constexpr (std::is_same_v<T, palm_pose_t>) palm_values(v, out);
+        if constexpr (std::is_same_v<T, encoder_raw_t>) raw_values(v, out);
+        if constexpr (std::is_same_v<T, status_t>) status_values(v, out);
+      },
+      m);
+}
+
+std::vector<std::string> cycle_header(const JointNames& joints) {
+  std::vector<std::string> h = header(Kind::kJointState, joints);
+  h.insert(h.end(), std::begin(kPalmColumns), std::end(kPalmColumns));
+  return h;
+}
+
+void append_cycle(const joint_state_t& joints, const palm_pose_t* palm,
+                  std::vector<std::string>& out) {
+  append_stamp(joints, out);
+  joint_values(joints, out);
+  if (palm != nullptr) {
+    palm_values(*palm, out);
+  } else {
+    out.resize(out.size() + kPalmCount);
+  }
+}
+
+std::string number(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  if (v == 0.0) return "0";  // and -0
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+std::string escape(std::string_view v) {
+  if (v.find_first_of(",\"\r\n") == std::string_view::npos) return std::string(v);
+  std::string out = "\"";
+  for (char c : v) {
+    if (c == '"') out += '"';
+    out += c;
+  }
+  out += '"';
+  return out;
+}
+
+std::string line(const std::vector<std::string>& values) {
+  std::string out;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (i) out += ',';
+    out += escape(values[i]);
+  }
+  return out;
+}
+
+bool split(std::string_view text, std::vector<std::string>& out) {
+  out.clear();
+  std::string field;
+  bool quoted = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < text.size() && text[i + 1] == '"') {
+        field += '"';
+        ++i;
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        field += c;
+      }
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      out.push_back(std::move(field));
+      field.clear();
+    } else {
+      field += c;
+    }
+  }
+  out.push_back(std::move(field));
+  return !quoted;
+}
+
+}  // namespace exodaq::msg::csv

@@ -1,0 +1,34 @@
+#pragma once
+// The clock part of status_t for people (exodaq status, exodaq echo). The
+// kernel reports an error bound of 16 s when it has no estimate (no NTP
+// source): that is "unknown", not a measurement. With the daemon's config
+// known, an unsynchronised clock under `clock.require_sync: ignore` (the
+// simulated rig) is said to be ignored rather than shouted.
+#include <cstdio>
+#include <optional>
+#include <string>
+
+#include "exodaq/config/service_config.hpp"
+#include "exodaq/status_t.hpp"
+
+namespace exodaq::tools {
+
+inline constexpr double kKernelUnknownErrorUs = 16'000'000.0;  // NTP_PHASE_LIMIT-derived
+
+inline std::string clock_error_text(double us) {
+  if (!(us < kKernelUnknownErrorUs)) return "unknown";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f us", us);
+  return buf;
+}
+
+// "synchronised", "NOT SYNCHRONISED" or "not synchronised (ignored: clock.require_sync: ignore)".
+inline std::string clock_state_text(const status_t& s, std::optional<config::RequireSync> policy) {
+  if (s.clock_synchronised) return "synchronised";
+  if (policy == config::RequireSync::kIgnore) {
+    return "not synchronised (ignored: clock.require_sync: ignore)";
+  }
+  return "NOT SYNCHRONISED";
+}
+
+}  // namespace exodaq::tools
