@@ -138,6 +138,8 @@ Acquisition::SourceCounters Acquisition::source_counters() const noexcept {
   c.missing_samples = published_missing_.load(std::memory_order_relaxed);
   c.seq_gaps = published_seq_gaps_.load(std::memory_order_relaxed);
   c.bus_errors = published_bus_errors_.load(std::memory_order_relaxed);
+  c.superseded_samples = published_superseded_.load(std::memory_order_relaxed);
+  c.late_syncs = published_late_syncs_.load(std::memory_order_relaxed);
   c.bus_state = published_bus_state_.load(std::memory_order_relaxed);
   return c;
 }
@@ -323,6 +325,8 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   published_missing_.store(end.source.missing_samples, std::memory_order_relaxed);
   published_seq_gaps_.store(end.source.seq_gaps, std::memory_order_relaxed);
   published_bus_errors_.store(end.source.bus_errors, std::memory_order_relaxed);
+  published_superseded_.store(end.source.superseded_samples, std::memory_order_relaxed);
+  published_late_syncs_.store(end.source.late_syncs, std::memory_order_relaxed);
   published_bus_state_.store(end.source.bus_state, std::memory_order_relaxed);
   end.now_mono_ns = now_mono;
   end.seq = seq_ - 1;

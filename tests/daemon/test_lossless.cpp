@@ -439,6 +439,7 @@ TEST(Lossless, AsSyncMasterALateSyncIsStampedAtTheTrueInstantAndCounted) {
       static_cast<long long>(can->detail().superseded_samples));
   EXPECT_EQ(stamped_late, 1);
   EXPECT_EQ(can->detail().late_syncs, 1);
+  EXPECT_EQ(can->stats().late_syncs, 1);  // what the daemon reports
   EXPECT_EQ(can->detail().superseded_samples, 0);
   EXPECT_EQ(can->stats().missing_samples, 0);
   // 3.3 ms late + 150 µs waiting for the answer: deadlines +1 .. +3 skipped.

@@ -368,6 +368,11 @@ TEST(ProcessFault, FreeRunningBoardThroughALoopStallLosesNothing) {
   EXPECT_GE(longest_late_run, 48);
   EXPECT_EQ(last.missing_samples, 0);
   EXPECT_EQ(last.seq_gaps, 0);
+  // The daemon's final line: nothing superseded (the sim's queue held every sample).
+  const std::string log = test::read_file(dir + "/d.err") + test::read_file(dir + "/d.out");
+  EXPECT_NE(log.find(" caught up after a late wake, 0 superseded, 0 late SYNCs)"),
+            std::string::npos)
+      << log;
   std::printf(
       "FREE-RUNNING: %zu cycles, seq 0..%lld without a hole, board seq without a skip, 0 missing; "
       "%lld LATE (longest run %lld, the stall); %lld overruns (deadlines skipped, samples "

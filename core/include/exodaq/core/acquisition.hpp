@@ -104,6 +104,8 @@ class Acquisition {
     std::int64_t missing_samples = 0;
     std::int64_t seq_gaps = 0;
     std::int64_t bus_errors = 0;
+    std::int64_t superseded_samples = 0;
+    std::int64_t late_syncs = 0;
     drivers::BusState bus_state = drivers::BusState::kUnknown;
   };
   SourceCounters source_counters() const noexcept;
@@ -168,6 +170,8 @@ class Acquisition {
   std::atomic<std::int64_t> published_missing_{0};
   std::atomic<std::int64_t> published_seq_gaps_{0};
   std::atomic<std::int64_t> published_bus_errors_{0};
+  std::atomic<std::int64_t> published_superseded_{0};
+  std::atomic<std::int64_t> published_late_syncs_{0};
   std::atomic<drivers::BusState> published_bus_state_{drivers::BusState::kUnknown};
   std::atomic<ServiceState> state_{ServiceState::kStarting};
   std::atomic<bool> stop_requested_{false};

@@ -69,6 +69,9 @@ struct SourceStats {
   // master, the aligned sim); 0 with a free-running board, whose every
   // sample is delivered.
   std::int64_t superseded_samples = 0;
+  // Sync master: SYNCs sent more than a tenth of a period after their
+  // deadline (a late wake); each such sample is stamped at its true instant.
+  std::int64_t late_syncs = 0;
   BusState bus_state = BusState::kUnknown;
   std::uint32_t board_errors = 0;
 };

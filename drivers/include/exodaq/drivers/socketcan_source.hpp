@@ -66,7 +66,11 @@ class SocketCanSource final : public EncoderSource {
   // it). Other failures (no CAN support in the kernel: EAFNOSUPPORT) throw.
   void start() override;
   ReadStatus read(const CycleTime& time, EncoderSample& out) noexcept override;
-  SourceStats stats() const noexcept override { return decoder_.stats(); }
+  SourceStats stats() const noexcept override {
+    SourceStats s = decoder_.stats();
+    s.late_syncs = detail_.late_syncs;
+    return s;
+  }
   bool free_running() const noexcept override { return !config_.sync_master; }
   int backlog() const noexcept override;
   void stop() noexcept override;
