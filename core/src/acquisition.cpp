@@ -333,7 +333,8 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   end.utime_us = result_.utime_us;
   end.overruns = overruns_.load(std::memory_order_relaxed);
   end.cycles = cycles_.load(std::memory_order_relaxed);
-  end.publish_failures = publisher_.failures() + publisher_.ring_drops();
+  end.publish = publisher_.health();
+  end.publish_failures = end.publish.failures + end.publish.ring_drops;
   end.utime_correction_ns = time_base_->utime_correction_ns();
   end.clock_steps = time_base_->clock_steps();
 

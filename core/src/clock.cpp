@@ -8,19 +8,15 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "exodaq/common/clock_now.hpp"
+
 namespace exodaq::core {
 
 namespace {
-std::int64_t read_clock(clockid_t id) noexcept {
-  timespec ts{};
-  clock_gettime(id, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 class SystemClock final : public ClockSource {
  public:
-  std::int64_t mono_ns() noexcept override { return read_clock(CLOCK_MONOTONIC); }
-  std::int64_t wall_ns() noexcept override { return read_clock(CLOCK_REALTIME); }
+  std::int64_t mono_ns() noexcept override { return clock_ns(CLOCK_MONOTONIC); }
+  std::int64_t wall_ns() noexcept override { return clock_ns(CLOCK_REALTIME); }
   ClockHealth ntp_health() noexcept override {
     ClockHealth h;
     timex tx{};

@@ -60,7 +60,7 @@ ServiceState next_state(ServiceState current, const WindowFacts& f,
       drivers::sample_flag::kBoardError | drivers::sample_flag::kBusError |
       drivers::sample_flag::kPartial | drivers::sample_flag::kClockStep;
   const bool clean = joint_faults == 0 && (f.sample_flags_or & bad_samples) == 0 &&
-                     f.overruns == 0 && !f.clock_hold;
+                     f.overruns == 0 && f.publish_failures == 0 && !f.clock_hold;
   return clean ? ServiceState::kRunning : ServiceState::kDegraded;
 }
 

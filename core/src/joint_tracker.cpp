@@ -1,5 +1,6 @@
 #include "exodaq/core/joint_tracker.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 
@@ -28,6 +29,7 @@ void JointTracker::reconfigure(const JointTrackerConfig& config) noexcept {
   const bool geometry_changed =
       config.channel != config_.channel || config.direction != config_.direction ||
       config.counts_per_rev != config_.counts_per_rev || config.gear_ratio != config_.gear_ratio;
+  const int vel_window_before = config_.velocity_window;
   config_ = config;
   if (config_.velocity_window < 2) config_.velocity_window = 2;
   if (config_.velocity_window > kMaxVelocityWindow) config_.velocity_window = kMaxVelocityWindow;
@@ -36,7 +38,23 @@ void JointTracker::reconfigure(const JointTrackerConfig& config) noexcept {
     // A different encoder geometry invalidates the reference: home again.
     homing_ = HomingState::kUnhomed;
   }
-  if (vel_n_ > config_.velocity_window) vel_n_ = config_.velocity_window;
+  if (vel_n_ > 0 && vel_window_before != config_.velocity_window) {
+    // The newest samples that fit the new window, in order.
+    const int old_window = vel_window_before;
+    std::array<std::int64_t, kMaxVelocityWindow> t{};
+    std::array<std::int64_t, kMaxVelocityWindow> c{};
+    const int keep = std::min(vel_n_, config_.velocity_window);
+    for (int k = 0; k < keep; ++k) {
+      const auto i = static_cast<std::size_t>((vel_head_ - keep + k + old_window * 2) % old_window);
+      t[static_cast<std::size_t>(k)] = vel_t_[i];
+      c[static_cast<std::size_t>(k)] = vel_c_[i];
+    }
+    vel_t_ = t;
+    vel_c_ = c;
+    vel_n_ = keep;
+    vel_head_ = keep % config_.velocity_window;
+    rebuild_fit(fit_t0_, fit_c0_);
+  }
 }
 
 double JointTracker::angle_of(std::int64_t count) const noexcept {
@@ -77,35 +95,76 @@ void JointTracker::home_on_index(std::int64_t index_count, JointEvent& event) no
   event = JointEvent::kHomed;
 }
 
+// Bounds on a sample's distance from the anchor that keep every sum exact in
+// 128 bits (64 samples: n * sum_tt < 2^109, sum_t * sum_c < 2^101).
+constexpr std::int64_t kFitMaxDt = std::int64_t{1} << 48;  // ns: 3.3 days
+constexpr std::int64_t kFitMaxDc = std::int64_t{1} << 40;  // counts
+
+void JointTracker::add_to_fit(std::int64_t t_ns, std::int64_t count, int sign) noexcept {
+  const std::int64_t dt = t_ns - fit_t0_;
+  const std::int64_t dc = count - fit_c0_;
+  sum_t_ += sign * dt;
+  sum_c_ += sign * dc;
+  sum_tt_ += sign * (static_cast<FitSum>(dt) * dt);
+  sum_tc_ += sign * (static_cast<FitSum>(dt) * dc);
+}
+
+// The sums of the samples in the window, relative to a new anchor; a sample
+// beyond the bounds from it (days without a count) leaves the window.
+void JointTracker::rebuild_fit(std::int64_t anchor_t_ns, std::int64_t anchor_count) noexcept {
+  fit_t0_ = anchor_t_ns;
+  fit_c0_ = anchor_count;
+  sum_t_ = sum_c_ = 0;
+  sum_tt_ = sum_tc_ = 0;
+  const int window = config_.velocity_window;
+  int kept = 0;
+  std::array<std::int64_t, kMaxVelocityWindow> t{};
+  std::array<std::int64_t, kMaxVelocityWindow> c{};
+  for (int k = vel_n_; k >= 1; --k) {  // oldest first
+    const auto i = static_cast<std::size_t>((vel_head_ - k + window * 2) % window);
+    if (std::llabs(vel_t_[i] - fit_t0_) >= kFitMaxDt ||
+        std::llabs(vel_c_[i] - fit_c0_) >= kFitMaxDc) {
+      continue;
+    }
+    t[static_cast<std::size_t>(kept)] = vel_t_[i];
+    c[static_cast<std::size_t>(kept)] = vel_c_[i];
+    add_to_fit(vel_t_[i], vel_c_[i], 1);
+    ++kept;
+  }
+  vel_t_ = t;
+  vel_c_ = c;
+  vel_n_ = kept;
+  vel_head_ = kept % window;
+}
+
+// The least-squares slope of count over time, n Stc - St Sc over n Stt - St^2,
+// exact in integers and rounded once per operand: the same line the former
+// two-pass double loop fitted, to within a few ulp (tests/daemon/test_joint_tracker.cpp).
 void JointTracker::update_velocity(std::int64_t t_ns) noexcept {
-  vel_t_[static_cast<std::size_t>(vel_head_)] = t_ns;
-  vel_c_[static_cast<std::size_t>(vel_head_)] = count_;
-  vel_head_ = (vel_head_ + 1) % config_.velocity_window;
-  if (vel_n_ < config_.velocity_window) ++vel_n_;
+  const int window = config_.velocity_window;
+  if (vel_n_ == 0 || std::llabs(t_ns - fit_t0_) >= kFitMaxDt ||
+      std::llabs(count_ - fit_c0_) >= kFitMaxDc) {
+    rebuild_fit(t_ns, count_);
+  }
+  const auto slot = static_cast<std::size_t>(vel_head_);
+  if (vel_n_ == window) {
+    add_to_fit(vel_t_[slot], vel_c_[slot], -1);  // the oldest leaves
+  } else {
+    ++vel_n_;
+  }
+  vel_t_[slot] = t_ns;
+  vel_c_[slot] = count_;
+  add_to_fit(t_ns, count_, 1);
+  vel_head_ = (vel_head_ + 1) % window;
   if (vel_n_ < 2) {
     reading_.velocity_rad_s = 0.0;
     return;
   }
-  // Least-squares slope of count over time, in coordinates relative to the
-  // newest sample so the sums stay small and exact enough in double.
-  double st = 0.0;
-  double sc = 0.0;
-  for (int i = 0; i < vel_n_; ++i) {
-    st += static_cast<double>(vel_t_[static_cast<std::size_t>(i)] - t_ns) * 1e-9;
-    sc += static_cast<double>(vel_c_[static_cast<std::size_t>(i)] - count_);
-  }
-  const double n = vel_n_;
-  const double tm = st / n;
-  const double cm = sc / n;
-  double stt = 0.0;
-  double stc = 0.0;
-  for (int i = 0; i < vel_n_; ++i) {
-    const double dt = static_cast<double>(vel_t_[static_cast<std::size_t>(i)] - t_ns) * 1e-9 - tm;
-    const double dc = static_cast<double>(vel_c_[static_cast<std::size_t>(i)] - count_) - cm;
-    stt += dt * dt;
-    stc += dt * dc;
-  }
-  const double slope = stt > 0.0 ? stc / stt : 0.0;  // counts per second
+  const FitSum n = vel_n_;
+  const FitSum den = n * sum_tt_ - static_cast<FitSum>(sum_t_) * sum_t_;
+  const FitSum num = n * sum_tc_ - static_cast<FitSum>(sum_t_) * sum_c_;
+  const double slope =
+      den > 0 ? static_cast<double>(num) * 1e9 / static_cast<double>(den) : 0.0;  // counts/s
   reading_.velocity_rad_s = config_.direction * slope * rad_per_count_;
 }
 

@@ -1,6 +1,7 @@
 #include "exodaq/core/status_assembler.hpp"
 
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 #include <vector>
 
@@ -54,6 +55,8 @@ void StatusAssembler::count_cycle(const CycleResult& result, bool present, bool 
 ServiceState StatusAssembler::close_window(ServiceState current, const WindowEnd& end) noexcept {
   facts_.overruns = end.overruns - window_overruns_start_;
   window_overruns_start_ = end.overruns;
+  facts_.publish_failures = end.publish_failures - window_publish_failures_start_;
+  window_publish_failures_start_ = end.publish_failures;
   facts_.bus_state = end.source.bus_state;
   bool all_homed = true;
   for (int i = 0; i < kJointCount; ++i) all_homed = all_homed && pipeline_.joint(i).reading().homed;
@@ -69,7 +72,7 @@ ServiceState StatusAssembler::close_window(ServiceState current, const WindowEnd
   status_.window_cycles = facts_.cycles;
   fill_timing(end);
   fill_counters(end);
-  fill_joints_and_text(next, end.overruns);
+  fill_joints_and_text(next, end);
 
   period_.clear();
   lateness_.clear();
@@ -118,7 +121,8 @@ void StatusAssembler::fill_counters(const WindowEnd& end) noexcept {
   s.clock_steps = end.clock_steps;
 }
 
-void StatusAssembler::fill_joints_and_text(ServiceState state, std::int64_t overruns) noexcept {
+void StatusAssembler::fill_joints_and_text(ServiceState state, const WindowEnd& end) noexcept {
+  const std::int64_t overruns = end.overruns;
   status_t& s = status_;
   int homed = 0;
   int worst_joint = -1;
@@ -137,7 +141,7 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, std::int64_t over
   }
   // One line for people: snprintf into a stack buffer, assigned within the
   // reserved capacity.
-  char text[200];
+  char text[256];  // status_t.message: at most 255 characters
   const double valid_pct =
       facts_.cycles > 0 ? 100.0 * facts_.valid_poses / static_cast<double>(facts_.cycles) : 0.0;
   int n = std::snprintf(text, sizeof(text), "%s: %d/%d homed, %.1f%% valid, %lld overruns",
@@ -150,9 +154,36 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, std::int64_t over
   }
   if ((facts_.sample_flags_or & drivers::sample_flag::kClockUnsync) != 0 && n > 0 &&
       n < static_cast<int>(sizeof(text))) {
-    std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n), "; clock unsynchronised");
+    n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
+                       "; clock unsynchronised");
   }
+  append_publish_text(text, n, static_cast<int>(sizeof(text)), state, end);
   s.message.assign(text);
+}
+
+// A failing publish path (since which seq, how many lost, why); after it
+// recovered, what was lost, for as long as the service stays degraded.
+int StatusAssembler::append_publish_text(char* text, int n, int cap, ServiceState state,
+                                         const WindowEnd& end) const noexcept {
+  if (n <= 0 || n >= cap) return n;
+  const PublishHealth& p = end.publish;
+  const auto rest = static_cast<std::size_t>(cap - n);
+  if (p.failing_since_ns != 0) {
+    const char* name = strerrorname_np(p.last_errno);
+    return n + std::snprintf(text + n, rest, "; publishing failing since seq %lld: %lld lost (%s)",
+                             static_cast<long long>(p.failing_since_seq),
+                             static_cast<long long>(p.lost_in_episode),
+                             name != nullptr ? name : "error");
+  }
+  if (p.recoveries > 0 && state == ServiceState::kDegraded &&
+      end.now_mono_ns - p.recovered_at_ns < 10'000'000'000) {
+    return n + std::snprintf(text + n, rest,
+                             "; publishing recovered at seq %lld: %lld lost from seq %lld",
+                             static_cast<long long>(p.recovered_to_seq),
+                             static_cast<long long>(p.recovered_lost),
+                             static_cast<long long>(p.recovered_from_seq));
+  }
+  return n;
 }
 
 }  // namespace exodaq::core

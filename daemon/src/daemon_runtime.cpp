@@ -30,6 +30,7 @@
 #include "exodaq/core/builder.hpp"
 #include "exodaq/drivers/backend.hpp"
 #include "exodaq/version.hpp"
+#include "publish_watch.hpp"
 
 namespace exodaq::daemon {
 
@@ -319,15 +320,16 @@ std::string status_line(Acquisition& acq, double rate_hz) {
   const char* clock_text = !clock.health_valid.load()  ? "clock health unknown"
                            : clock.synchronised.load() ? "clock synchronised"
                                                        : "clock UNSYNCHRONISED";
+  const PublishHealth publish = acq.publisher().health();
   char text[320];
   std::snprintf(text, sizeof(text),
                 "STATUS=%s, %.1f Hz, cycle %" PRId64 "; drops: %" PRId64
                 " missing samples, %" PRId64 " seq gaps, %" PRId64 " overruns, %" PRId64
                 " publish failures; %" PRId64 " bus errors%s; %s",
                 state_name(acq.state()), rate_hz, acq.cycles(), stats.missing_samples,
-                stats.seq_gaps, acq.overruns(), acq.publisher().failures(), stats.bus_errors,
-                bus_state_text(stats.bus_state), clock_text);
-  return text;
+                stats.seq_gaps, acq.overruns(), publish.failures + publish.ring_drops,
+                stats.bus_errors, bus_state_text(stats.bus_state), clock_text);
+  return text + PublishWatch::status_text(publish);
 }
 
 // Settings a reload cannot change without a restart.
@@ -442,6 +444,7 @@ class Supervisor {
   void drain_events();
   void notify_systemd(std::int64_t now);
   void check_end(std::int64_t now);
+  void watch_publishing(std::int64_t now);
 
   Acquisition& acq_;
   ServiceConfig& config_;
@@ -460,6 +463,7 @@ class Supervisor {
   bool ready_ = false;
   bool realtime_logged_ = false;
   bool running_ = true;
+  PublishWatch publish_watch_{config_.lcm.url};
 };
 
 Supervisor::Supervisor(Acquisition& acq, ServiceConfig& config, const DaemonOptions& options,
@@ -489,8 +493,25 @@ void Supervisor::run() {
       realtime_logged_ = true;
     }
     const std::int64_t now = mono_now_ns();
+    watch_publishing(now);
     notify_systemd(now);
     check_end(now);
+  }
+}
+
+// A failing publish path is logged when it starts, at each re-creation of
+// the socket and when it recovers (publish_watch.hpp).
+void Supervisor::watch_publishing(std::int64_t now) {
+  for (const PublishLogLine& line : publish_watch_.check(acq_.publisher().health(), now)) {
+    const std::string f = fields({{"EXODAQ_EVENT", line.event},
+                                  {"EXODAQ_STATE", state_name(acq_.state())},
+                                  {"EXODAQ_ERRNO", std::to_string(line.error)},
+                                  {"EXODAQ_RUN_ID", std::to_string(acq_.run_id())}});
+    if (line.warning) {
+      spdlog::warn("{}{}", line.text, f);
+    } else {
+      spdlog::info("{}{}", line.text, f);
+    }
   }
 }
 
@@ -590,10 +611,11 @@ void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& lo
   if (!options.lateness_log.empty()) write_lateness_log(acq, options.lateness_log);
   const auto source = acq.source_counters();  // as of the final status window
   spdlog::info(
-      "stopped after {} cycles ({} overruns, {} publish failures; {} samples late, {} caught up "
-      "after a late wake, {} superseded, {} late SYNCs){}",
+      "stopped after {} cycles ({} overruns, {} publish failures, {} messages published; {} "
+      "samples late, {} caught up after a late wake, {} superseded, {} late SYNCs){}",
       acq.cycles(), acq.overruns(), acq.publisher().failures() + acq.publisher().ring_drops(),
-      acq.late_samples(), acq.caught_up_samples(), source.superseded_samples, source.late_syncs,
+      acq.publisher().published(), acq.late_samples(), acq.caught_up_samples(),
+      source.superseded_samples, source.late_syncs,
       fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", std::to_string(acq.run_id())}}));
   shut_down_logging(logging);
 }

@@ -119,97 +119,119 @@ Chain::Chain(Convention convention, std::vector<JointDescription> joints, const 
   compile(&link_homes);
 }
 
+namespace {
+
+// Each joint's fixed transforms before (A_i) and after (B_i) its Rz(q_i), the
+// palm in the last joint's frame, and the squared length scale of the chain.
+struct JointSteps {
+  std::array<Rigid, kMaxJoints> A{};
+  std::array<Rigid, kMaxJoints> B{};
+  Rigid palm_from_n;
+  double scale = 0.0;
+};
+
+// A DH chain: standard Rz(q + off) Tz(d) Tx(a) Rx(alpha), modified
+// Rx(alpha) Tx(a) Rz(q + off) Tz(d).
+JointSteps dh_steps(Convention convention, const std::vector<JointDescription>& joints,
+                    const Pose& tool) {
+  JointSteps out;
+  out.palm_from_n = from_pose(tool);
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    const DhRow& dh = joints[i].dh;
+    out.scale += dh.a * dh.a + dh.d * dh.d;
+    if (convention == Convention::kStandardDh) {
+      out.B[i] = compose(trans(dh.a, 0.0, dh.d), rot_x(dh.alpha));
+    } else {
+      out.A[i] = compose(rot_x(dh.alpha), trans(dh.a, 0.0, 0.0));
+      out.B[i] = trans(0.0, 0.0, dh.d);
+    }
+  }
+  return out;
+}
+
+// The link frames of a PoE chain at q = 0: given, or at the next joint's axis
+// point (the palm for the last).
+std::vector<Pose> poe_link_homes(const std::vector<JointDescription>& joints, const Pose& tool,
+                                 const std::vector<Pose>* given) {
+  if (given) return *given;
+  const std::size_t n = joints.size();
+  std::vector<Pose> homes(n, Pose::Identity());
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i + 1 < n) {
+      homes[i].translation() = joints[i + 1].screw.q;
+    } else {
+      homes[i] = tool;
+    }
+  }
+  return homes;
+}
+
+// A product-of-exponentials chain (normalises each screw axis in place).
+// exp([xi] (q + off)) = G Rz(q + off) G^-1, so the product of exponentials is
+// G_1 Rz(q_1 + off_1) G_1^-1 G_2 Rz(q_2 + off_2) G_2^-1 ... M. Link frame i is
+// that product up to joint i times L_i: B_i = G_i^-1 L_i, and A_i is then taken
+// from link frame i - 1: A_i = L_{i-1}^-1 G_i (L_0 = I).
+JointSteps poe_steps(std::vector<JointDescription>& joints, const Pose& tool,
+                     const std::vector<Pose>& homes) {
+  JointSteps out;
+  out.palm_from_n = from_pose(tool);
+  const std::size_t n = joints.size();
+  Eigen::Vector3d last_point = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    ScrewAxis& s = joints[i].screw;
+    const double norm = s.omega.norm();
+    if (!(norm > 1e-9) || !std::isfinite(norm)) {
+      throw std::invalid_argument("joint " + std::to_string(i + 1) +
+                                  ": screw axis omega has zero length");
+    }
+    s.omega /= norm;
+    const Rigid G = axis_frame(s.omega, s.q);
+    const Rigid prev = i == 0 ? Rigid{} : inverse(from_pose(homes[i - 1]));
+    out.A[i] = compose(prev, G);
+    out.B[i] = compose(inverse(G), from_pose(homes[i]));
+    out.scale += (s.q - last_point).squaredNorm();
+    last_point = s.q;
+  }
+  out.scale += (tool.translation() - last_point).squaredNorm();
+  // The palm is M; frame n is L_n (the palm itself unless link frames are given).
+  if (n > 0) out.palm_from_n = compose(inverse(from_pose(homes[n - 1])), from_pose(tool));
+  return out;
+}
+
+}  // namespace
+
 void Chain::compile(const std::vector<Pose>* link_homes) {
   const int n = joint_count();
   if (n > kMaxJoints) {
     throw std::invalid_argument("a chain has at most " + std::to_string(kMaxJoints) +
                                 " joints, got " + std::to_string(n));
   }
-  // A_i (before Rz(q_i)) and B_i (after it), then the merged steps.
-  std::array<Rigid, kMaxJoints> A{};
-  std::array<Rigid, kMaxJoints> B{};
-  Rigid palm_from_n = from_pose(tool_);  // frame n -> palm
   home_ = Pose::Identity();
   link_homes_.clear();
-  double scale = 0.0;
-  bool any_dh = false;
-  for (int i = 0; i < n; ++i) {
-    const DhRow& dh = joints_[i].dh;
-    scale += dh.a * dh.a + dh.d * dh.d;
-    any_dh = any_dh || dh.a != 0.0 || dh.d != 0.0;
+  JointSteps js = dh_steps(convention_, joints_, tool_);
+  if (convention_ == Convention::kProductOfExponentials) {
+    // A PoE chain that also carries DH lengths keeps their scale.
+    const double dh_scale = js.scale;
+    home_ = tool_;
+    link_homes_ = poe_link_homes(joints_, tool_, link_homes);
+    js = poe_steps(joints_, tool_, link_homes_);
+    if (dh_scale > 0.0) js.scale = dh_scale;
   }
-  switch (convention_) {
-    case Convention::kStandardDh:
-      for (int i = 0; i < n; ++i) {
-        const DhRow& dh = joints_[i].dh;
-        // Rz(q + off) Tz(d) Tx(a) Rx(alpha)
-        B[i] = compose(trans(dh.a, 0.0, dh.d), rot_x(dh.alpha));
-      }
-      break;
-    case Convention::kModifiedDh:
-      for (int i = 0; i < n; ++i) {
-        const DhRow& dh = joints_[i].dh;
-        // Rx(alpha) Tx(a) Rz(q + off) Tz(d)
-        A[i] = compose(rot_x(dh.alpha), trans(dh.a, 0.0, 0.0));
-        B[i] = trans(0.0, 0.0, dh.d);
-      }
-      break;
-    case Convention::kProductOfExponentials: {
-      home_ = tool_;
-      std::vector<Pose> homes(n, Pose::Identity());
-      for (int i = 0; i < n; ++i) {
-        if (link_homes) {
-          homes[i] = (*link_homes)[i];
-        } else if (i + 1 < n) {
-          homes[i].translation() = joints_[i + 1].screw.q;
-        } else {
-          homes[i] = tool_;
-        }
-      }
-      Eigen::Vector3d last_point = Eigen::Vector3d::Zero();
-      double poe_scale = 0.0;
-      for (int i = 0; i < n; ++i) {
-        ScrewAxis& s = joints_[i].screw;
-        const double norm = s.omega.norm();
-        if (!(norm > 1e-9) || !std::isfinite(norm)) {
-          throw std::invalid_argument("joint " + std::to_string(i + 1) +
-                                      ": screw axis omega has zero length");
-        }
-        s.omega /= norm;
-        const Rigid G = axis_frame(s.omega, s.q);
-        // exp([xi] (q + off)) = G Rz(q + off) G^-1, so the product of exponentials is
-        // G_1 Rz(q_1 + off_1) G_1^-1 G_2 Rz(q_2 + off_2) G_2^-1 ... M. Link frame i
-        // is that product up to joint i times L_i: B_i = G_i^-1 L_i, and A_i is then
-        // taken from link frame i - 1: A_i = L_{i-1}^-1 G_i (L_0 = I).
-        const Rigid prev = i == 0 ? Rigid{} : inverse(from_pose(homes[i - 1]));
-        A[i] = compose(prev, G);
-        B[i] = compose(inverse(G), from_pose(homes[i]));
-        poe_scale += (s.q - last_point).squaredNorm();
-        last_point = s.q;
-      }
-      poe_scale += (tool_.translation() - last_point).squaredNorm();
-      // The palm is M; frame n is L_n (the palm itself unless link frames are given).
-      if (n > 0) palm_from_n = compose(inverse(from_pose(homes[n - 1])), from_pose(tool_));
-      link_homes_ = homes;
-      if (!any_dh) scale = poe_scale;
-      break;
-    }
-  }
-  length_scale_sq_ = scale;
-  const Rigid base = from_pose(base_);
+  length_scale_sq_ = js.scale;
   link_ = {};
   step_ = {};
+  const Rigid base = from_pose(base_);
   if (n == 0) {
-    step_[0] = compose(base, palm_from_n);
+    step_[0] = compose(base, js.palm_from_n);
     return;
   }
-  step_[0] = compose(base, A[0]);
+  step_[0] = compose(base, js.A[0]);
   offset_ = {};
   for (int i = 0; i < n; ++i) {
     offset_[i] = joints_[i].dh.theta_offset;
-    link_[i] = B[i];
+    link_[i] = js.B[i];
     Rigid& C = step_[i + 1];
-    C = compose(B[i], i + 1 < n ? A[i + 1] : palm_from_n);
+    C = compose(js.B[i], i + 1 < n ? js.A[i + 1] : js.palm_from_n);
     C.rx = C.R(0, 0) == 1.0 && C.R(1, 0) == 0.0 && C.R(2, 0) == 0.0 && C.R(0, 1) == 0.0 &&
            C.R(0, 2) == 0.0 && C.R(1, 1) == C.R(2, 2) && C.R(2, 1) == -C.R(1, 2);
     C.cb = C.R(1, 1);

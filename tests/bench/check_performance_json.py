@@ -108,9 +108,13 @@ def main():
                     "reference_from_deadline"):
             for k in q + ("loss",):
                 number(d, f"e2e.{p}.{who}.{k}")
-        for k in ("added_p50_us", "sim_sample_to_deadline_offset_us", "in_loop_work_p50_us",
-                  "in_loop_work_p99_us"):
+        for k in ("added_p50_us", "added_p50_vs_reference_deadline_us",
+                  "sim_sample_to_deadline_offset_us", "in_loop_work_p50_us", "in_loop_work_p99_us",
+                  "daemon_messages_per_cycle", "cpu_us_per_message", "reference_cpu_us_per_message"):
             number(d, f"e2e.{p}.{k}")
+        for span in ("cycle", "sendmsg", "sem_post", "work"):
+            for k in ("p50_us", "p99_us", "mean_us"):
+                number(d, f"e2e.{p}.loop_spans.{span}.{k}")
         for who in ("resources", "reference_resources"):
             for k in ("cpu_percent", "rss_mib", "ctx_per_s", "ctx_voluntary_per_s",
                       "ctx_involuntary_per_s"):

@@ -11,6 +11,8 @@
 #include <sstream>
 #include <string>
 
+#include "tool_run.hpp"
+
 #include "exodaq/config/calibration_file.hpp"
 #include "synthetic.hpp"
 
@@ -19,20 +21,8 @@ namespace {
 
 using namespace synth;  // NOLINT
 
-struct Result {
-  int code;
-  std::string output;
-};
-
-Result run(const std::string& args) {
-  const std::string cmd = std::string(EXODAQ_TOOL) + " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (p && fgets(buf, sizeof buf, p)) out += buf;
-  const int status = p ? pclose(p) : -1;
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+using Result = test::MergedResult;
+const auto run = &test::run_tool_merged;
 
 class CalibrateCli : public ::testing::Test {
  protected:

@@ -10,6 +10,9 @@
 //       --vary-seq adds the iteration number to seq, mono_ns and utime;
 //       --big also publishes BYTES bytes (i*7+3 mod 256) on PREFIX + BIG, which
 //       LCM sends as fragmented LC03 datagrams when large enough.
+//       With EXODAQ_FIXTURE_SENDER=exodaq in the environment the messages go
+//       out through exodaqd's own sender (core/udpm_sender.hpp) instead of
+//       LCM's, so the stock subscribers are tested against its datagrams.
 //
 // The canonical text is one line per scalar, "<type>.<field>[<i>]=<value>":
 // integers in decimal, booleans 0/1, strings as they are, doubles as the hex of
@@ -24,10 +27,12 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "exodaq/core/udpm_sender.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
@@ -303,6 +308,19 @@ int publish(int argc, char** argv) {
     std::fprintf(stderr, "exodaq_lcm_fixture: cannot open LCM at %s\n", url.c_str());
     return 3;
   }
+  std::unique_ptr<exodaq::core::UdpmSender> own;
+  if (const char* s = std::getenv("EXODAQ_FIXTURE_SENDER"); s && std::strcmp(s, "exodaq") == 0) {
+    const auto address = exodaq::core::parse_udpm_url(url);
+    if (!address) {
+      std::fprintf(stderr, "exodaq_lcm_fixture: exodaq's sender does not take %s\n", url.c_str());
+      return 3;
+    }
+    own = std::make_unique<exodaq::core::UdpmSender>(*address, url);
+  }
+  auto send = [&](const std::string& channel, const void* data, std::size_t size) {
+    if (own) return own->send(channel, static_cast<const std::uint8_t*>(data), size) == 0;
+    return lcm.publish(channel, data, static_cast<unsigned>(size)) == 0;
+  };
   std::vector<char> blob(static_cast<std::size_t>(big));
   for (std::size_t i = 0; i < blob.size(); ++i) blob[i] = static_cast<char>((i * 7 + 3) & 0xff);
   int failures = 0;
@@ -314,11 +332,11 @@ int publish(int argc, char** argv) {
     if (vary) shift(j, k), shift(p, k), shift(e, k), shift(s, k);
     // Encode into our own buffers and publish raw bytes, as the daemon does.
     const auto bj = encode(j), bp = encode(p), be = encode(e), bs = encode(s);
-    failures += lcm.publish(prefix + "EXO_JOINT_STATE", bj.data(), bj.size()) != 0;
-    failures += lcm.publish(prefix + "EXO_PALM_POSE", bp.data(), bp.size()) != 0;
-    failures += lcm.publish(prefix + "EXO_ENCODER_RAW", be.data(), be.size()) != 0;
-    failures += lcm.publish(prefix + "EXO_STATUS", bs.data(), bs.size()) != 0;
-    if (big > 0) failures += lcm.publish(prefix + "BIG", blob.data(), blob.size()) != 0;
+    failures += !send(prefix + "EXO_JOINT_STATE", bj.data(), bj.size());
+    failures += !send(prefix + "EXO_PALM_POSE", bp.data(), bp.size());
+    failures += !send(prefix + "EXO_ENCODER_RAW", be.data(), be.size());
+    failures += !send(prefix + "EXO_STATUS", bs.data(), bs.size());
+    if (big > 0) failures += !send(prefix + "BIG", blob.data(), blob.size());
     std::fflush(stdout);
     if (interval_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(interval_ms));
   }

@@ -1,7 +1,9 @@
 // JointTracker: unwrap, homing (seed 000 eq. 4), faults, velocity.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "exodaq/core/joint_tracker.hpp"
 
@@ -231,4 +233,99 @@ TEST(JointTracker, ReconfigureKeepsHomingAndAppliesNewOffset) {
   feed(t, 1, 0);
   EXPECT_TRUE(t.reading().homed);
   EXPECT_NEAR(t.reading().position_rad, 31.85 * kPi / 180.0, 1e-12);
+}
+
+namespace {
+// The velocity fit as it was computed before the running sums (two passes in
+// double over the window, relative to the newest sample): the reference the
+// exact integer fit is held to.
+double two_pass_slope(const std::vector<std::int64_t>& t, const std::vector<std::int64_t>& c) {
+  const std::int64_t tn = t.back();
+  const std::int64_t cn = c.back();
+  double st = 0.0;
+  double sc = 0.0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    st += static_cast<double>(t[i] - tn) * 1e-9;
+    sc += static_cast<double>(c[i] - cn);
+  }
+  const double n = static_cast<double>(t.size());
+  double stt = 0.0;
+  double stc = 0.0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    const double dt = static_cast<double>(t[i] - tn) * 1e-9 - st / n;
+    const double dc = static_cast<double>(c[i] - cn) - sc / n;
+    stt += dt * dt;
+    stc += dt * dc;
+  }
+  return stt > 0.0 ? stc / stt : 0.0;
+}
+}  // namespace
+
+// The running integer sums give the two-pass fit's velocity to within a few
+// ulp over a long jittered, accelerating run (window full, anchors far behind).
+TEST(JointTracker, VelocityFromRunningSumsMatchesTheTwoPassFit) {
+  auto c = base_config();
+  c.velocity_window = 21;
+  c.max_speed_rad_s = 100.0;
+  JointTracker t(c);
+  const double rad_per_count = 2 * kPi / 10000;
+  std::vector<std::int64_t> ts, cs;
+  std::uint64_t rng = 12345;
+  double worst = 0.0;
+  for (int k = 0; k < 20'000; ++k) {
+    rng = rng * 6364136223846793005ULL + 1442695040888963407ULL;
+    const std::int64_t jitter = static_cast<std::int64_t>((rng >> 33) % 200'000) - 100'000;
+    const std::int64_t tk = 5'000'000'000'000LL + k * kMs + jitter;  // ~83 min after boot
+    const double s = k * 1e-3;
+    const auto count =
+        static_cast<std::int64_t>(std::floor(3000.0 * std::sin(0.7 * s) + 40.0 * s * s));
+    t.update(tk, true, static_cast<std::uint16_t>(count & 0xFFFF), false, 0, false);
+    ts.push_back(tk);
+    cs.push_back(count);
+    if (ts.size() > 21) {
+      ts.erase(ts.begin());
+      cs.erase(cs.begin());
+    }
+    if (ts.size() < 2) continue;
+    const double expected = two_pass_slope(ts, cs) * rad_per_count;
+    const double got = t.reading().velocity_rad_s;
+    const double err = std::abs(got - expected) / std::max(1.0, std::abs(expected));
+    worst = std::max(worst, err);
+  }
+  EXPECT_LT(worst, 1e-12);
+}
+
+// Exact data give the exact slope: 3 counts per ms is 3000 counts/s.
+TEST(JointTracker, VelocityOfAnExactLineIsExact) {
+  auto c = base_config();
+  c.max_speed_rad_s = 100.0;
+  JointTracker t(c);
+  for (int ms = 0; ms < 50; ++ms) feed(t, ms, 3 * ms);
+  EXPECT_EQ(t.reading().velocity_rad_s, 3000.0 * (2 * kPi / 10000));
+}
+
+// A reload that shrinks the window keeps the newest samples: the same
+// velocity as a tracker that only ever saw those.
+TEST(JointTracker, ShrinkingTheVelocityWindowKeepsTheNewestSamples) {
+  auto c = base_config();
+  c.max_speed_rad_s = 100.0;
+  c.velocity_window = 21;
+  JointTracker a(c);
+  auto counts = [](int ms) { return static_cast<std::int64_t>(ms * ms / 7); };
+  for (int ms = 0; ms < 40; ++ms) feed(a, ms, counts(ms));
+  c.velocity_window = 5;
+  a.reconfigure(c);
+  feed(a, 40, counts(40));
+  JointTracker b(c);
+  for (int ms = 0; ms <= 40; ++ms) feed(b, ms, counts(ms));
+  EXPECT_EQ(a.reading().velocity_rad_s, b.reading().velocity_rad_s);
+  c.velocity_window = 9;  // and growing keeps all it has
+  a.reconfigure(c);
+  b.reconfigure(c);
+  for (int ms = 41; ms < 45; ++ms) {
+    feed(a, ms, counts(ms));
+    feed(b, ms, counts(ms));
+  }
+  EXPECT_EQ(a.reading().velocity_rad_s, b.reading().velocity_rad_s);
+  EXPECT_NE(a.reading().velocity_rad_s, 0.0);
 }

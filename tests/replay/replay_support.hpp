@@ -8,6 +8,7 @@
 
 #include "exodaq/drivers/sim_rig.hpp"
 #include "exodaq/messages/lcm_log.hpp"
+#include "exodaq/messages/message.hpp"
 
 namespace exodaq::test {
 
@@ -29,6 +30,12 @@ std::map<std::int64_t, Msg> messages_by_seq(const std::vector<LogEvent>& log,
     out[m.seq] = m;
   }
   return out;
+}
+
+// One log event carrying `m` on `channel`, stamped with its utime.
+template <typename Msg>
+LogEvent event(const std::string& channel, const Msg& m) {
+  return LogEvent{channel, msg::encode(m), m.utime};
 }
 
 // config/sim.yaml with absolute model/calibration paths, the given LCM

@@ -18,6 +18,8 @@
 namespace exodaq::drivers {
 namespace {
 
+using test::event;
+
 constexpr std::int64_t kWallStart = 1'700'000'000'000'000'000LL;
 
 std::string temp_dir() {
@@ -164,16 +166,6 @@ TEST(ReplayCandump, MalformedLinesAreNumberedCountedAndSkipped) {
   }
   EXPECT_EQ(missing, 3);
   EXPECT_EQ(src.read(CycleTime{}, s), ReadStatus::kEndOfStream);
-}
-
-template <typename Msg>
-test::LogEvent event(const std::string& channel, const Msg& m) {
-  test::LogEvent e;
-  e.channel = channel;
-  e.data.resize(static_cast<std::size_t>(m.getEncodedSize()));
-  m.encode(e.data.data(), 0, static_cast<int>(e.data.size()));
-  e.timestamp = m.utime;
-  return e;
 }
 
 TEST(ReplayLcm, DecodesEncoderRawFieldForField) {

@@ -26,6 +26,8 @@
 namespace exodaq::drivers {
 namespace {
 
+using test::event;
+
 constexpr std::int64_t kWallStart = 1'700'000'000'000'000'000LL;
 
 // FNV-1a over the values fed to it, field by field (no padding bytes).
@@ -125,16 +127,6 @@ std::uint64_t samples_digest(ReplaySource& src, std::int64_t* count = nullptr,
   }
   if (count != nullptr) *count = n;
   return d.h;
-}
-
-template <typename Msg>
-test::LogEvent event(const std::string& channel, const Msg& m) {
-  test::LogEvent e;
-  e.channel = channel;
-  e.data.resize(static_cast<std::size_t>(m.getEncodedSize()));
-  m.encode(e.data.data(), 0, static_cast<int>(e.data.size()));
-  e.timestamp = m.utime;
-  return e;
 }
 
 std::size_t event_bytes(const test::LogEvent& e) {

@@ -175,6 +175,33 @@ TEST(ViewScene, StoppingStatusWithTheStreamStillFlowingIsNotStopped) {
   EXPECT_EQ(scene.stream_state(kSecond + kMs), StreamState::kLive);
 }
 
+// The kernel's 16 s error bound (no NTP estimate) is "unknown", and an
+// unsynchronised clock the config ignores is said to be ignored (issue 16.9).
+TEST(ViewScene, ClockWithoutAnEstimateUnderRequireSyncIgnore) {
+  SceneOptions ignoring;
+  ignoring.sync_required = false;
+  ViewScene scene(macaque(), ignoring);
+  status_t s{};
+  s.clock_synchronised = false;
+  s.clock_est_error_us = 16'000'000.0;
+  scene.on_status(s, kSecond);
+  const auto ev = named(scene.tick(kSecond), "status");
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_NE(ev[0].json.find("\"synchronised\":false,\"required\":false,\"est_error_us\":null"),
+            std::string::npos)
+      << ev[0].json;
+
+  ViewScene strict(macaque(), SceneOptions{});
+  s.clock_synchronised = true;
+  s.clock_est_error_us = 250.0;
+  strict.on_status(s, kSecond);
+  const auto ev2 = named(strict.tick(kSecond), "status");
+  ASSERT_EQ(ev2.size(), 1u);
+  EXPECT_NE(ev2[0].json.find("\"synchronised\":true,\"required\":true,\"est_error_us\":250"),
+            std::string::npos)
+      << ev2[0].json;
+}
+
 TEST(ViewScene, TrailKeepsTheLastSecondsAndRestartsWithARun) {
   SceneOptions o;
   o.trail_s = 2.0;

@@ -60,6 +60,37 @@ std::int64_t thread_cpu_now() {
   return clock_ns(CLOCK_THREAD_CPUTIME_ID);
 }
 
+// Fields read in place from the encoded bytes instead of decoding every
+// message: LCM writes the 8-byte fingerprint, then the fields in order,
+// big-endian; every exodaq message starts utime, mono_ns, seq, run_id, and
+// palm_pose_t goes on with `valid`. check_layout() holds these to the
+// generated encoders.
+constexpr std::size_t kMonoNsOffset = 16;
+constexpr std::size_t kPalmValidOffset = 40;
+
+std::int64_t big_endian64(const std::uint8_t* p) noexcept {
+  std::uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = (v << 8) | p[i];
+  return static_cast<std::int64_t>(v);
+}
+
+void check_layout() {
+  std::array<std::uint8_t, core::kMaxMessageBytes> buf{};
+  const int cap = static_cast<int>(buf.size());
+  joint_state_t j{};
+  j.mono_ns = 0x0102030405060708;
+  palm_pose_t p{};
+  p.mono_ns = -2;
+  p.valid = 1;
+  const bool joint_ok =
+      j.encode(buf.data(), 0, cap) > 0 && big_endian64(buf.data() + kMonoNsOffset) == j.mono_ns;
+  const bool palm_ok = p.encode(buf.data(), 0, cap) > 0 &&
+                       big_endian64(buf.data() + kMonoNsOffset) == p.mono_ns &&
+                       buf[kPalmValidOffset] == 1;
+  if (!joint_ok || !palm_ok)
+    throw std::logic_error("replay: message layout is not the expected one");
+}
+
 // Writes every published message to an LCM log file, as lcm-logger would
 // have recorded it live (event timestamp = the message's utime). status_t
 // fields that measure the replaying machine rather than the recording
@@ -67,8 +98,9 @@ std::int64_t thread_cpu_now() {
 // deterministic values: mono_ns = the last cycle's, work_* = 0.
 class LcmLogSink final : public core::MessageSink {
  public:
-  LcmLogSink(const std::string& path, const std::vector<std::string>& inputs)
-      : log_(path, inputs) {}
+  LcmLogSink(const std::string& path, const std::vector<std::string>& inputs) : log_(path, inputs) {
+    check_layout();
+  }
 
   // Messages before arm() (the Acquisition's start-up encoder warm-up) are dropped.
   void arm() noexcept { armed_ = true; }
@@ -78,12 +110,12 @@ class LcmLogSink final : public core::MessageSink {
     const std::uint8_t* data = msg.bytes.data();
     std::size_t size = msg.size;
     if (msg.channel == msg::Kind::kJointState) {
-      if (!msg::decode_into(joint_, data, size)) return false;
-      last_mono_ns_ = joint_.mono_ns;
+      if (size < kMonoNsOffset + 8) return false;
+      last_mono_ns_ = big_endian64(data + kMonoNsOffset);
     } else if (msg.channel == msg::Kind::kPalmPose) {
-      if (!msg::decode_into(palm_, data, size)) return false;
+      if (size <= kPalmValidOffset) return false;
       ++palm_messages_;
-      if (palm_.valid) ++valid_;
+      if (data[kPalmValidOffset] != 0) ++valid_;
     } else if (msg.channel == msg::Kind::kStatus) {
       if (!msg::decode_into(status_, data, size)) return false;
       status_.mono_ns = last_mono_ns_;
@@ -120,8 +152,6 @@ class LcmLogSink final : public core::MessageSink {
   std::int64_t palm_messages_ = 0;
   std::int64_t valid_ = 0;
   std::string error_;
-  joint_state_t joint_;
-  palm_pose_t palm_;
   status_t status_;
   std::array<std::uint8_t, core::kMaxMessageBytes> buffer_{};
 };

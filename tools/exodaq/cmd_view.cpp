@@ -93,6 +93,7 @@ view::ViewModel load_view_model(const ViewOptions& o, view::SceneOptions& scene)
   fill_joints(m, cfg.model.chain);
   scene.url = cfg.lcm.url;
   scene.prefix = cfg.lcm.prefix;
+  scene.sync_required = cfg.clock.require_sync != config::RequireSync::kIgnore;
   return m;
 }
 

@@ -1,13 +1,14 @@
 #include "view_scene.hpp"
 
-#include <cinttypes>
 #include <cstdio>
 #include <stdexcept>
 #include <utility>
 
+#include "clock_text.hpp"
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/flag_names.hpp"
+#include "exodaq/messages/message.hpp"
 #include "exodaq/messages/subscriber.hpp"
 #include "exodaq/version.hpp"
 #include "view_json.hpp"
@@ -18,12 +19,6 @@ namespace {
 
 constexpr int32_t kUnhomedBits = joint_state_t::JOINT_UNHOMED;
 constexpr int32_t kHeldBits = joint_state_t::JOINT_HELD;
-
-std::string run_hex(int64_t run_id) {
-  char buf[24];
-  std::snprintf(buf, sizeof buf, "%016" PRIx64, static_cast<uint64_t>(run_id));
-  return buf;
-}
 
 void write_vec(JsonWriter& j, const Eigen::Vector3d& v) {
   j.begin_array().value(v.x()).value(v.y()).value(v.z()).end_array();
@@ -168,7 +163,7 @@ std::string ViewScene::stream_json(int64_t now_ns) const {
   j.key("status_age_s");
   status_ ? j.value(seconds(now_ns - status_local_ns_)) : j.null();
   j.key("run_id");
-  joints_ ? j.value(run_hex(joints_->run_id)) : j.null();
+  joints_ ? j.value(msg::run_id_text(joints_->run_id)) : j.null();
   j.key("rate_hz");
   const auto rate = meter_.rate_hz();
   rate ? j.value(*rate) : j.null();
@@ -200,8 +195,32 @@ std::string ViewScene::frame_json() {
   }
 
   JsonWriter j;
-  j.begin_object().field("seq", js.seq).field("run_id", run_hex(js.run_id));
+  j.begin_object().field("seq", js.seq).field("run_id", msg::run_id_text(js.run_id));
   j.field("utime", js.utime).field("t", seconds(js.mono_ns));
+  write_joint_arrays(j, js);
+  j.key("frames").begin_array();
+  for (const auto& f : frames_) write_vec(j, f);
+  j.end_array();
+  j.key("palm");
+  write_vec(j, palm);
+  j.key("elbow");
+  write_vec(j, elbow_fk);
+  j.key("published");
+  const std::optional<double> fk_error = write_published(j, js, palm, elbow_fk);
+  // Computed palm and elbow minus the published ones for the same cycle: not
+  // ~0 means this view's model or calibration is not the daemon's.
+  j.key("fk_error_m");
+  fk_error ? j.value(*fk_error) : j.null();
+  j.key("rate_hz");
+  const auto rate = meter_.rate_hz();
+  rate ? j.value(*rate) : j.null();
+  j.field("decimated", since_frame_);
+  j.end_object();
+  since_frame_ = 0;
+  return j.str();
+}
+
+void ViewScene::write_joint_arrays(JsonWriter& j, const Joints& js) const {
   j.key("names").begin_array();
   for (const auto& name : model_.joint_names) j.value(name);
   j.end_array();
@@ -224,55 +243,45 @@ std::string ViewScene::frame_json() {
   j.end_array();
   j.field("sample_flags", js.sample_flags)
       .field("sample_flag_names", msg::sample_flag_names(js.sample_flags));
-  j.key("frames").begin_array();
-  for (const auto& f : frames_) write_vec(j, f);
-  j.end_array();
-  j.key("palm");
-  write_vec(j, palm);
-  j.key("elbow");
-  write_vec(j, elbow_fk);
-  j.key("published");
-  std::optional<double> fk_error;
-  if (palm_) {
-    const Palm& p = *palm_;
-    const Eigen::Vector3d pp(p.position[0], p.position[1], p.position[2]);
-    const Eigen::Vector3d pe(p.elbow[0], p.elbow[1], p.elbow[2]);
-    if (p.seq == js.seq && p.run_id == js.run_id) {
-      fk_error = std::max((pp - palm).norm(), (pe - elbow_fk).norm());
-    }
-    j.begin_object().field("seq", p.seq).field("valid", p.valid);
-    j.field("invalid_reason", p.invalid_reason)
-        .field("invalid_names", msg::invalid_reason_names(p.invalid_reason));
-    j.key("position");
-    write_vec(j, pp);
-    j.key("elbow");
-    write_vec(j, pe);
-    j.field("manipulability", p.manipulability).field("near_singular", p.near_singular);
-    j.end_object();
-  } else {
+}
+
+std::optional<double> ViewScene::write_published(JsonWriter& j, const Joints& js,
+                                                 const Eigen::Vector3d& palm,
+                                                 const Eigen::Vector3d& elbow) const {
+  if (!palm_) {
     j.null();
+    return std::nullopt;
   }
-  // Computed palm and elbow minus the published ones for the same cycle: not
-  // ~0 means this view's model or calibration is not the daemon's.
-  j.key("fk_error_m");
-  fk_error ? j.value(*fk_error) : j.null();
-  j.key("rate_hz");
-  const auto rate = meter_.rate_hz();
-  rate ? j.value(*rate) : j.null();
-  j.field("decimated", since_frame_);
+  const Palm& p = *palm_;
+  const Eigen::Vector3d pp(p.position[0], p.position[1], p.position[2]);
+  const Eigen::Vector3d pe(p.elbow[0], p.elbow[1], p.elbow[2]);
+  j.begin_object().field("seq", p.seq).field("valid", p.valid);
+  j.field("invalid_reason", p.invalid_reason)
+      .field("invalid_names", msg::invalid_reason_names(p.invalid_reason));
+  j.key("position");
+  write_vec(j, pp);
+  j.key("elbow");
+  write_vec(j, pe);
+  j.field("manipulability", p.manipulability).field("near_singular", p.near_singular);
   j.end_object();
-  since_frame_ = 0;
-  return j.str();
+  if (p.seq != js.seq || p.run_id != js.run_id) return std::nullopt;
+  return std::max((pp - palm).norm(), (pe - elbow).norm());
 }
 
 std::string ViewScene::status_json(const status_t& s) const {
   JsonWriter j;
-  j.begin_object().field("seq", s.seq).field("utime", s.utime).field("run_id", run_hex(s.run_id));
+  j.begin_object()
+      .field("seq", s.seq)
+      .field("utime", s.utime)
+      .field("run_id", msg::run_id_text(s.run_id));
   j.field("rig", s.rig).field("state", msg::state_name(s.state)).field("state_code", int{s.state});
   j.field("message", s.message).field("source", s.source);
   j.field("bus", msg::bus_state_name(s.bus_state)).field("board_errors", s.board_errors);
   j.key("clock").begin_object();
-  j.field("synchronised", s.clock_synchronised != 0).field("est_error_us", s.clock_est_error_us);
+  j.field("synchronised", s.clock_synchronised != 0).field("required", options_.sync_required);
+  // The kernel's 16 s bound means "no estimate" (clock_text.hpp): null.
+  j.key("est_error_us");
+  s.clock_est_error_us < kKernelUnknownErrorUs ? j.value(s.clock_est_error_us) : j.null();
   j.field("max_error_us", s.clock_max_error_us).field("offset_us", s.clock_offset_us);
   j.field("utime_correction_us", s.utime_correction_us).field("steps", s.clock_steps);
   j.end_object();

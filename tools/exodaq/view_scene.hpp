@@ -25,6 +25,8 @@
 
 namespace exodaq::tools::view {
 
+class JsonWriter;
+
 inline constexpr int kViewJoints = 6;  // joint_state_t carries six joints
 
 struct ViewModel {
@@ -46,6 +48,7 @@ struct SceneOptions {
   double trail_s = 5.0;         // palm trail length
   double silence_s = 1.0;       // no joint state for longer: "no-data" (or "stopped")
   double stream_every_s = 0.5;  // a stream event at least this often
+  bool sync_required = true;    // false under the config's clock.require_sync: ignore
 };
 
 enum class StreamState { kWaiting, kLive, kNoData, kStopped };
@@ -107,6 +110,12 @@ class ViewScene {
   };
 
   std::string frame_json();
+  void write_joint_arrays(JsonWriter& j, const Joints& js) const;
+  // The published palm pose (null without one); returns the distance from
+  // `palm`/`elbow` (this view's FK) when it is for the same cycle.
+  std::optional<double> write_published(JsonWriter& j, const Joints& js,
+                                        const Eigen::Vector3d& palm,
+                                        const Eigen::Vector3d& elbow) const;
   std::string status_json(const status_t& s) const;
   std::string model_json() const;
 

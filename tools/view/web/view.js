@@ -219,14 +219,15 @@
         FAULT: 'bad', STOPPING: 'bad' }[s.state];
       badge($('service'), s.state, stateClass);
       const c = s.clock;
-      badge($('clock'), c.synchronised ? `synced ±${fmt(c.est_error_us, 0)} µs` : 'NOT SYNCHRONISED',
-        c.synchronised && c.steps === 0 ? 'good' : 'warn');
+      const clockText = c.synchronised ? `synced ±${fmt(c.est_error_us, 0)} µs`
+        : c.required ? 'NOT SYNCHRONISED' : 'not synchronised (ignored by the config)';
+      badge($('clock'), clockText, c.synchronised && c.steps === 0 ? 'good' : c.required ? 'warn' : '');
       $('message').textContent = s.message;
       $('loop').textContent = `lateness p99 ${fmt(s.loop.lateness_p99_us, 1)} µs, max ${fmt(s.loop.lateness_max_us, 1)} µs, ` +
         `overruns ${s.loop.overruns}, cycles ${s.loop.cycles}`;
       $('source').textContent = `${s.source}, bus ${s.bus}, frames ${s.source_stats.frames}, ` +
         `missing ${s.source_stats.missing_samples}, seq gaps ${s.source_stats.seq_gaps}`;
-      $('clock-detail').textContent = `${c.synchronised ? 'synchronised' : 'not synchronised'}, est error ${fmt(c.est_error_us, 1)} µs, ` +
+      $('clock-detail').textContent = `${c.synchronised ? 'synchronised' : 'not synchronised'}, est error ${c.est_error_us === null ? 'unknown' : fmt(c.est_error_us, 1) + ' µs'}, ` +
         `max error ${fmt(c.max_error_us, 1)} µs, offset ${fmt(c.offset_us, 1)} µs, steps ${c.steps}`;
     }
     if (d === 'stopped') badge($('service'), 'STOPPED', 'bad');

@@ -55,6 +55,7 @@ struct WindowFacts {
   bool clock_hold = false;  // require_sync: hold and unsynchronised
   drivers::BusState bus_state = drivers::BusState::kUnknown;
   std::int64_t overruns = 0;
+  std::int64_t publish_failures = 0;  // messages the publish path refused or dropped
 };
 
 // One step of the service state machine (docs/operations.md, "Service state")

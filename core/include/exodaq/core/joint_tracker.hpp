@@ -56,6 +56,9 @@ struct JointTrackerConfig {
 
 using config::kMaxVelocityWindow;
 
+// The velocity fit's exact sums (a GCC/Clang extension, hence __extension__).
+__extension__ typedef __int128 FitSum;
+
 struct JointCounters {
   std::int64_t glitches = 0;
   std::int64_t lost_count_events = 0;
@@ -132,11 +135,21 @@ class JointTracker {
   bool out_of_range_ = false;
   std::int64_t lost_counts_until_ns_ = 0;
 
-  // velocity: a least-squares line through the last `velocity_window` fresh samples
+  // velocity: the least-squares line through the last `velocity_window` fresh
+  // samples, from exact integer sums updated as samples enter and leave
+  // (times in ns and counts relative to an anchor sample).
+  void add_to_fit(std::int64_t t_ns, std::int64_t count, int sign) noexcept;
+  void rebuild_fit(std::int64_t anchor_t_ns, std::int64_t anchor_count) noexcept;
   std::array<std::int64_t, kMaxVelocityWindow> vel_t_{};
   std::array<std::int64_t, kMaxVelocityWindow> vel_c_{};
   int vel_n_ = 0;
-  int vel_head_ = 0;
+  int vel_head_ = 0;  // the slot the next sample goes to: the oldest one once the window is full
+  std::int64_t fit_t0_ = 0;  // the anchor
+  std::int64_t fit_c0_ = 0;
+  std::int64_t sum_t_ = 0;
+  std::int64_t sum_c_ = 0;
+  FitSum sum_tt_ = 0;
+  FitSum sum_tc_ = 0;
 
   JointReading reading_;
   JointCounters counters_;

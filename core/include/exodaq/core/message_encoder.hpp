@@ -27,6 +27,7 @@ void publish_encoded(Publisher& publisher, msg::Kind channel, const Msg& message
   slot->channel = channel;
   slot->size = static_cast<std::uint32_t>(n);
   slot->utime_us = utime_us;
+  slot->seq = message.seq;
   publisher.commit();
 }
 

@@ -10,6 +10,7 @@
 #include "exodaq/core/clock.hpp"
 #include "exodaq/core/health.hpp"
 #include "exodaq/core/pipeline.hpp"
+#include "exodaq/core/publisher.hpp"
 #include "exodaq/drivers/encoder_sample.hpp"
 #include "exodaq/status_t.hpp"
 
@@ -30,7 +31,8 @@ struct WindowEnd {
   std::int64_t utime_us = 0;     // ... and its utime
   std::int64_t overruns = 0;     // totals since start
   std::int64_t cycles = 0;
-  std::int64_t publish_failures = 0;
+  std::int64_t publish_failures = 0;  // refused + ring drops, since start
+  PublishHealth publish;              // the failure episode under way, or the last one
   drivers::SourceStats source;
   std::int64_t utime_correction_ns = 0;  // TimeBase
   std::int64_t clock_steps = 0;
@@ -60,7 +62,9 @@ class StatusAssembler {
  private:
   void fill_timing(const WindowEnd& end) noexcept;
   void fill_counters(const WindowEnd& end) noexcept;
-  void fill_joints_and_text(ServiceState state, std::int64_t overruns) noexcept;
+  void fill_joints_and_text(ServiceState state, const WindowEnd& end) noexcept;
+  int append_publish_text(char* text, int n, int cap, ServiceState state,
+                          const WindowEnd& end) const noexcept;
 
   const Pipeline& pipeline_;
   const ClockShared& clock_;
@@ -73,6 +77,7 @@ class StatusAssembler {
   std::int64_t last_wake_ns_ = 0;
   std::int64_t last_sample_wake_ns_ = 0;
   std::int64_t window_overruns_start_ = 0;
+  std::int64_t window_publish_failures_start_ = 0;
 };
 
 }  // namespace exodaq::core

@@ -1,0 +1,10 @@
+# Sourced by scripts/build, scripts/sanitize and scripts/fuzz: ccache (when
+# installed) as the compiler launcher, so rebuilds, several checkouts of the
+# tree and CI's sanitizer and fuzz builds stay cheap (issue 17: the CI
+# budget). CCACHE_BASEDIR makes its keys independent of where the tree lives.
+# Sets CCACHE_LAUNCHER: the cmake arguments (none without ccache).
+CCACHE_LAUNCHER=()
+if command -v ccache >/dev/null; then
+  export CCACHE_BASEDIR="$PWD" CCACHE_NOHASHDIR=1
+  CCACHE_LAUNCHER=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+fi
