@@ -109,6 +109,7 @@ int run_main(int argc, char** argv) {
 
 // Nothing escapes main: an unexpected exception is reported and exits 1.
 int main(int argc, char** argv) {
+  exodaq::daemon::take_over_signals();  // before anything slow: no signal is fatal from here on
   try {
     return run_main(argc, argv);
   } catch (const std::exception& e) {

@@ -154,8 +154,10 @@ void Acquisition::push_event(LogEvent::Kind kind) noexcept {
 void Acquisition::thread_main() noexcept {
   try {
     realtime_report_ = setup_realtime(config_);
+    realtime_refused_ = realtime_report_.find("refused") != std::string::npos;
   } catch (...) {
     realtime_report_ = "real-time setup failed";
+    realtime_refused_ = true;
   }
   pthread_setname_np(pthread_self(), "exodaq-loop");
   const std::int64_t period = config_.period_ns;
@@ -266,6 +268,8 @@ void Acquisition::apply_staged_reload() noexcept {
   const PipelineConfig* staged = configs_.take_staged();
   if (staged == nullptr) return;
   pipeline_.use(*staged);
+  ++reloads_;
+  status_.use_files(staged->files, reloads_);
   if (staged->clock) time_base_->set_policy(*staged->clock);
   push_event(LogEvent::Kind::kReloadApplied);
 }

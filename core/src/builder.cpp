@@ -7,8 +7,43 @@
 
 namespace exodaq::core {
 
+namespace {
+// Where a cut may fall: not inside a UTF-8 sequence.
+bool starts_character(const std::string& s, std::size_t at) {
+  return at >= s.size() || (static_cast<unsigned char>(s[at]) & 0xC0) != 0x80;
+}
+
+// A path that keeps its end (the file name) after "...".
+std::string keep_end(const std::string& s, std::size_t max_bytes) {
+  if (s.size() <= max_bytes) return s;
+  std::size_t from = s.size() - (max_bytes - 3);
+  while (!starts_character(s, from)) ++from;
+  return "..." + s.substr(from);
+}
+
+// A text that keeps its start, then "...".
+std::string keep_start(const std::string& s, std::size_t max_bytes) {
+  if (s.size() <= max_bytes) return s;
+  std::size_t to = max_bytes - 3;
+  while (to > 0 && !starts_character(s, to)) --to;
+  return s.substr(0, to) + "...";
+}
+
+ConfigFiles config_files(const config::ServiceConfig& c) {
+  ConfigFiles f;
+  f.config_path = keep_end(c.file, ConfigFiles::kMaxPathBytes);
+  f.config_sha256 = c.config_sha256.substr(0, ConfigFiles::kMaxHashBytes);
+  f.calibration_path = keep_end(c.calibration_path, ConfigFiles::kMaxPathBytes);
+  f.calibration_sha256 = c.calibration_sha256.substr(0, ConfigFiles::kMaxHashBytes);
+  f.calibration_provenance = keep_start(config::provenance_text(c.calibration.provenance),
+                                        ConfigFiles::kMaxProvenanceBytes);
+  return f;
+}
+}  // namespace
+
 std::unique_ptr<PipelineConfig> make_pipeline_config(const config::ServiceConfig& c) {
   auto p = std::make_unique<PipelineConfig>();
+  p->files = config_files(c);
   p->chain = config::apply_calibration(c.model.chain, c.calibration);
   p->rig = c.model.rig;
   const auto& joints = c.model.chain.joints();

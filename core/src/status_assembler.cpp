@@ -21,13 +21,40 @@ StatusAssembler::StatusAssembler(const StatusSettings& settings, const Pipeline&
   status_.message.reserve(256);
   status_.message.assign(255, ' ');
   status_.message.clear();
+  for (auto [text, bytes] : file_fields()) text->reserve(bytes);
+  use_files(pipeline.config().files, 0);
+  status_.foreign_run_id = 0;
+}
+
+std::array<std::pair<std::string*, std::size_t>, 5> StatusAssembler::file_fields() noexcept {
+  return {{{&status_.config_path, ConfigFiles::kMaxPathBytes},
+           {&status_.config_sha256, ConfigFiles::kMaxHashBytes},
+           {&status_.calibration_path, ConfigFiles::kMaxPathBytes},
+           {&status_.calibration_sha256, ConfigFiles::kMaxHashBytes},
+           {&status_.calibration_provenance, ConfigFiles::kMaxProvenanceBytes}}};
+}
+
+void StatusAssembler::use_files(const ConfigFiles& files, std::int32_t reloads) noexcept {
+  const std::array<const std::string*, 5> from = {
+      &files.config_path, &files.config_sha256, &files.calibration_path, &files.calibration_sha256,
+      &files.calibration_provenance};
+  const auto to = file_fields();
+  for (std::size_t i = 0; i < to.size(); ++i) {
+    // Within the reserved capacity (a longer one is cut, never reallocated).
+    to[i].first->assign(*from[i], 0, to[i].second);
+  }
+  status_.reloads = reloads;
 }
 
 void StatusAssembler::warm_up() {
   std::vector<std::uint8_t> scratch(kMaxMessageBytes);
+  const ConfigFiles kept = {status_.config_path, status_.config_sha256, status_.calibration_path,
+                            status_.calibration_sha256, status_.calibration_provenance};
   status_.message.assign(255, 'x');
+  for (auto [text, bytes] : file_fields()) text->assign(bytes, 'x');
   const bool fits = status_.encode(scratch.data(), 0, static_cast<int>(scratch.size())) >= 0;
   status_.message.clear();
+  use_files(kept, status_.reloads);
   if (!fits) throw std::runtime_error("status message larger than a publisher slot");
 }
 

@@ -25,10 +25,12 @@
 
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/config/service_config.hpp"
+#include "exodaq/config/setting_classes.hpp"
 #include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
 #include "exodaq/drivers/backend.hpp"
+#include "exodaq/messages/message.hpp"
 #include "exodaq/version.hpp"
 #include "publish_watch.hpp"
 
@@ -230,7 +232,7 @@ const char* joint_event_id(JointEvent e) {
 void log_event(const LogEvent& e, const AcquisitionConfig& ac, std::int64_t run_id,
                ServiceState state) {
   const std::string seq = std::to_string(e.seq);
-  const std::string run = std::to_string(run_id);
+  const std::string run = msg::run_id_text(run_id);
   switch (e.kind) {
     case LogEvent::Kind::kJoint: {
       const auto& name = ac.joint_names[static_cast<std::size_t>(e.joint)];
@@ -332,23 +334,55 @@ std::string status_line(Acquisition& acq, double rate_hz) {
   return text + PublishWatch::status_text(publish);
 }
 
-// Settings a reload cannot change without a restart.
-std::string restart_only_changes(const ServiceConfig& a, const ServiceConfig& b) {
-  std::string out;
-  const auto note = [&out](bool changed, const char* what) {
-    if (changed) out += (out.empty() ? "" : ", ") + std::string(what);
-  };
-  note(a.loop.rate_hz != b.loop.rate_hz || a.loop.cpu != b.loop.cpu ||
-           a.loop.priority != b.loop.priority,
-       "loop");
-  note(drivers::describe(a.source) != drivers::describe(b.source), "source");
-  note(a.lcm.url != b.lcm.url || a.lcm.prefix != b.lcm.prefix, "lcm");
-  note(a.rig != b.rig, "rig");
-  return out;
-}
-
 void notify(const std::string& text) {
   sd_notify(0, text.c_str());
+}
+
+// Signals that mean nothing to the daemon but end a process by default:
+// taken and logged, never fatal.
+constexpr int kIgnoredSignals[] = {SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPOLL, SIGPWR};
+
+const char* signal_name(int sig) {
+  switch (sig) {
+    case SIGTERM:
+      return "SIGTERM";
+    case SIGINT:
+      return "SIGINT";
+    case SIGHUP:
+      return "SIGHUP";
+    case SIGUSR1:
+      return "SIGUSR1";
+    case SIGUSR2:
+      return "SIGUSR2";
+    case SIGALRM:
+      return "SIGALRM";
+    case SIGVTALRM:
+      return "SIGVTALRM";
+    case SIGPOLL:
+      return "SIGPOLL";
+    case SIGPWR:
+      return "SIGPWR";
+    default:
+      return "signal";
+  }
+}
+
+// The signals the supervisor takes with sigtimedwait().
+sigset_t daemon_signals() {
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGHUP);
+  for (const int sig : kIgnoredSignals) sigaddset(&signals, sig);
+  return signals;
+}
+
+// The log level the configuration's logging.level gives, unless SPDLOG_LEVEL
+// or --log-level set it (they win, as at start-up). Empty: overridden.
+std::string configured_level(const DaemonOptions& options, const ServiceConfig& config) {
+  if (!options.log_level.empty() || std::getenv("SPDLOG_LEVEL") != nullptr) return {};
+  return config.logging.level;
 }
 
 // The configuration, or the exit code when there is nothing more to do
@@ -375,18 +409,6 @@ std::optional<int> load_config(const DaemonOptions& options, ServiceConfig& conf
     return 0;
   }
   return std::nullopt;
-}
-
-// SIGTERM, SIGINT and SIGHUP blocked here and in every thread created from
-// here on: the main thread takes them synchronously.
-sigset_t block_signals() {
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGTERM);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGHUP);
-  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
-  return signals;
 }
 
 void shut_down_logging(const Logging& logging) {
@@ -417,22 +439,29 @@ std::unique_ptr<Acquisition> start_acquisition(const ServiceConfig& config,
 }
 
 void log_started(const ServiceConfig& config, std::int64_t run_id) {
+  const std::string run = msg::run_id_text(run_id);
   spdlog::info(
-      "exodaqd {} started: rig {}, source {}, {:.0f} Hz, model {}, calibration {}, LCM {} prefix "
-      "'{}', run id {}{}",
+      "exodaqd {} started: rig {}, source {}, {:.0f} Hz, config {} (sha256 {}), model {}, "
+      "calibration {} (sha256 {}; {}), LCM {} prefix '{}', run id {}{}",
       exodaq::kVersion, config.rig, drivers::describe(config.source), config.loop.rate_hz,
-      config.model_path, config.calibration_path, config.lcm.url, config.lcm.prefix, run_id,
+      config.file, config.config_sha256, config.model_path, config.calibration_path,
+      config.calibration_sha256, config::provenance_text(config.calibration.provenance),
+      config.lcm.url, config.lcm.prefix, run,
       fields({{"EXODAQ_EVENT", "started"},
               {"EXODAQ_RIG", config.rig},
-              {"EXODAQ_RUN_ID", std::to_string(run_id)},
+              {"EXODAQ_RUN_ID", run},
+              {"EXODAQ_CONFIG_SHA256", config.config_sha256},
+              {"EXODAQ_CALIBRATION_SHA256", config.calibration_sha256},
               {"EXODAQ_VERSION", exodaq::kVersion}}));
 }
 
 // The main thread while the loop runs: signals, reloads, the loop's events,
-// and systemd's READY=1, WATCHDOG=1 and STATUS=.
+// and systemd's READY=1, WATCHDOG=1 and STATUS=. Signals that arrived during
+// start-up were held pending (take_over_signals()) and are taken here.
 class Supervisor {
  public:
   // `started_ns`: when start-up began (--duration counts from there).
+  // `config`: the configuration the acquisition started with.
   Supervisor(Acquisition& acq, ServiceConfig& config, const DaemonOptions& options,
              const sigset_t& signals, std::int64_t started_ns);
   // Until SIGTERM/SIGINT, --duration or the end of the source.
@@ -441,13 +470,17 @@ class Supervisor {
  private:
   void take_signal();
   void reload();
+  void log_changes(const ServiceConfig& next) const;
+  void log_realtime() const;
   void drain_events();
   void notify_systemd(std::int64_t now);
   void check_end(std::int64_t now);
   void watch_publishing(std::int64_t now);
 
   Acquisition& acq_;
-  ServiceConfig& config_;
+  ServiceConfig& config_;  // the last configuration accepted
+  // The one the loop started with: the restart-only settings in effect.
+  const ServiceConfig started_;
   const DaemonOptions& options_;
   const sigset_t& signals_;
   const std::int64_t started_ns_;
@@ -468,7 +501,12 @@ class Supervisor {
 
 Supervisor::Supervisor(Acquisition& acq, ServiceConfig& config, const DaemonOptions& options,
                        const sigset_t& signals, std::int64_t started_ns)
-    : acq_(acq), config_(config), options_(options), signals_(signals), started_ns_(started_ns) {
+    : acq_(acq),
+      config_(config),
+      started_(config),
+      options_(options),
+      signals_(signals),
+      started_ns_(started_ns) {
   // Watchdog (WatchdogSec= in the unit): ping at half the interval, and only
   // while cycles progress, so a stalled loop lets systemd's watchdog fire. A
   // loop that cycles without samples (state fault) still pings: restarting
@@ -489,7 +527,7 @@ void Supervisor::run() {
     take_signal();
     drain_events();
     if (!realtime_logged_ && acq_.cycles() > 0) {
-      spdlog::info("loop thread: {}", acq_.realtime_report());
+      log_realtime();
       realtime_logged_ = true;
     }
     const std::int64_t now = mono_now_ns();
@@ -506,7 +544,7 @@ void Supervisor::watch_publishing(std::int64_t now) {
     const std::string f = fields({{"EXODAQ_EVENT", line.event},
                                   {"EXODAQ_STATE", state_name(acq_.state())},
                                   {"EXODAQ_ERRNO", std::to_string(line.error)},
-                                  {"EXODAQ_RUN_ID", std::to_string(acq_.run_id())}});
+                                  {"EXODAQ_RUN_ID", msg::run_id_text(acq_.run_id())}});
     if (line.warning) {
       spdlog::warn("{}{}", line.text, f);
     } else {
@@ -520,10 +558,25 @@ void Supervisor::take_signal() {
   siginfo_t info{};
   const int sig = sigtimedwait(&signals_, &info, &wait);
   if (sig == SIGTERM || sig == SIGINT) {
-    spdlog::info("{} received: stopping", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+    spdlog::info("{} received: stopping", signal_name(sig));
     running_ = false;
   } else if (sig == SIGHUP) {
     reload();
+  } else if (sig > 0) {
+    spdlog::warn("{} received from pid {}: ignored (SIGTERM or SIGINT stop, SIGHUP reloads){}",
+                 signal_name(sig), info.si_pid,
+                 fields({{"EXODAQ_EVENT", "signal_ignored"}, {"EXODAQ_SIGNAL", signal_name(sig)}}));
+  }
+}
+
+// What the loop thread was granted: a refusal (no CAP_SYS_NICE, RLIMIT_MEMLOCK)
+// is a warning, so `journalctl -p warning` shows a loop without real-time guarantees.
+void Supervisor::log_realtime() const {
+  if (acq_.realtime_refused()) {
+    spdlog::warn("loop thread: {}{}", acq_.realtime_report(),
+                 fields({{"EXODAQ_EVENT", "realtime_refused"}}));
+  } else {
+    spdlog::info("loop thread: {}", acq_.realtime_report());
   }
 }
 
@@ -531,17 +584,46 @@ void Supervisor::reload() {
   notify("RELOADING=1\nSTATUS=reloading " + options_.config_path);
   try {
     ServiceConfig next = load_service_config(options_.config_path);
-    const std::string fixed = restart_only_changes(config_, next);
-    if (!fixed.empty())
-      spdlog::warn("reload: changes to {} take effect only after a restart", fixed);
     acq_.stage_reload(make_pipeline_config(next), next.clock);
-    spdlog::info("reload: {} and {} accepted", next.calibration_path, next.model_path);
+    if (const std::string level = configured_level(options_, next); !level.empty())
+      spdlog::set_level(spdlog::level::from_str(level));
+    log_changes(next);
     config_ = std::move(next);
   } catch (const std::exception& e) {
     spdlog::error("reload rejected, previous configuration stays: {}{}", e.what(),
                   fields({{"EXODAQ_EVENT", "reload_rejected"}}));
   }
   notify("READY=1\n" + status_line(acq_, rate_hz_));
+}
+
+// Every reload says what it changed: the live settings against the last
+// configuration accepted (info), and, on every SIGHUP that carries one, each
+// restart-only setting whose value differs from the one running (warning).
+void Supervisor::log_changes(const ServiceConfig& next) const {
+  std::vector<config::SettingChange> live;
+  for (auto& c : config::compare_settings(config_, next)) {
+    if (c.apply == config::Apply::kLive) live.push_back(std::move(c));
+  }
+  std::vector<config::SettingChange> restart;
+  for (auto& c : config::compare_settings(started_, next)) {
+    if (c.apply == config::Apply::kRestart) restart.push_back(std::move(c));
+  }
+  if (!restart.empty()) {
+    spdlog::warn(
+        "reload: {} restart-only setting(s) changed, NOT applied until exodaqd restarts: {}{}",
+        restart.size(), config::describe_changes(restart),
+        fields({{"EXODAQ_EVENT", "reload_needs_restart"}}));
+  }
+  spdlog::info("reload: {} (sha256 {}) accepted, calibration {} (sha256 {}); {} live change(s){}{}",
+               next.file, next.config_sha256, next.calibration_path, next.calibration_sha256,
+               live.size(), live.empty() ? "" : ": " + config::describe_changes(live),
+               fields({{"EXODAQ_EVENT", "reload_accepted"},
+                       {"EXODAQ_CONFIG_SHA256", next.config_sha256},
+                       {"EXODAQ_CALIBRATION_SHA256", next.calibration_sha256}}));
+  if (configured_level(options_, next).empty() && next.logging.level != config_.logging.level) {
+    spdlog::info("reload: logging.level {} not applied: --log-level or SPDLOG_LEVEL sets the level",
+                 next.logging.level);
+  }
 }
 
 void Supervisor::drain_events() {
@@ -616,16 +698,23 @@ void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& lo
       acq.cycles(), acq.overruns(), acq.publisher().failures() + acq.publisher().ring_drops(),
       acq.publisher().published(), acq.late_samples(), acq.caught_up_samples(),
       source.superseded_samples, source.late_syncs,
-      fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", std::to_string(acq.run_id())}}));
+      fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", msg::run_id_text(acq.run_id())}}));
   shut_down_logging(logging);
 }
 
 }  // namespace
 
+void take_over_signals() {
+  signal(SIGPIPE, SIG_IGN);  // a closed log pipe is EPIPE on write, not the end of the run
+  const sigset_t signals = daemon_signals();
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+}
+
 int run_daemon(const DaemonOptions& options) {
+  take_over_signals();  // before the configuration: it may take seconds to read
+  const sigset_t signals = daemon_signals();
   ServiceConfig config;
   if (const auto exit_code = load_config(options, config)) return *exit_code;
-  const sigset_t signals = block_signals();
   const Logging logging = make_logger(config.logging, options.log_level);
   const std::int64_t started_ns = mono_now_ns();
   const std::unique_ptr<Acquisition> acq = start_acquisition(config, options, logging);

@@ -7,6 +7,8 @@
 #include <sstream>
 
 #include "exodaq/common/files.hpp"
+#include "exodaq/config/content_hash.hpp"
+#include "exodaq/config/setting_classes.hpp"
 #include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 
@@ -156,19 +158,22 @@ void parse_logging(MapReader m, LoggingSettings& log) {
 
 // A file the config names (model, calibration): one that cannot be opened is
 // reported at the config's line, with the path as written and as resolved;
-// errors inside it carry its own file:line.
+// errors inside it carry its own file:line. `sha256`: of the bytes parsed.
 template <typename T>
 T load_referenced(const std::string& config_file, const YAML::Node& at, const std::string& key,
-                  const std::string& path, T (*load)(const std::string&)) {
+                  const std::string& path, T (*load)(const std::string&, const std::string&),
+                  std::string& sha256) {
+  std::string text;
   try {
-    (void)files::check_input(path, files::kMaxYamlBytes);
+    text = files::read_input(path, files::kMaxYamlBytes);
   } catch (const files::FileError& e) {
     const std::string written = at.IsScalar() ? at.Scalar() : path;
     const std::string where =
         written == path ? path : "'" + written + "', relative to the config's folder: " + path;
     throw ConfigError(config_file, line_of(at), key + " file " + where + ": " + e.reason());
   }
-  return load(path);
+  sha256 = sha256_hex(text);
+  return load(text, path);
 }
 
 ServiceConfig parse(const YAML::Node& root, const std::string& file) {
@@ -195,7 +200,8 @@ ServiceConfig parse(const YAML::Node& root, const std::string& file) {
   top.finish();
 
   // The referenced files, each with its own file:line errors.
-  c.model = load_referenced(file, root["model"], "model", c.model_path, &load_model_file);
+  c.model =
+      load_referenced(file, root["model"], "model", c.model_path, &load_model_text, c.model_sha256);
   if (c.model.chain.joint_count() != kJointCount) {
     throw ConfigError(file, line_of(root["model"]),
                       "model '" + c.model_path + "' has " +
@@ -209,18 +215,26 @@ ServiceConfig parse(const YAML::Node& root, const std::string& file) {
     }
   }
   c.calibration = load_referenced(file, root["calibration"], "calibration", c.calibration_path,
-                                  &load_calibration_file);
+                                  &load_calibration_text, c.calibration_sha256);
   c.model.rig.singularity_threshold = c.singularity_threshold;
   return c;
 }
 }  // namespace
 
 ServiceConfig load_service_config(const std::string& path) {
-  return parse(load_yaml_file(path), path);
+  std::string text;
+  try {
+    text = files::read_input(path, files::kMaxYamlBytes);
+  } catch (const files::FileError& e) {
+    throw ConfigError(path, 0, e.reason());
+  }
+  return load_service_config_text(text, path);
 }
 
 ServiceConfig load_service_config_text(const std::string& text, const std::string& name) {
-  return parse(load_yaml_text(text, name), name);
+  ServiceConfig c = parse(load_yaml_text(text, name), name);
+  c.config_sha256 = sha256_hex(text);
+  return c;
 }
 
 drivers::SourceContext make_source_context(const ServiceConfig& config) {
@@ -249,46 +263,70 @@ std::int64_t period_ns(const ServiceConfig& config) {
   return static_cast<std::int64_t>(1e9 / config.loop.rate_hz);
 }
 
+std::string provenance_text(const CalibrationProvenance& p) {
+  std::string out = p.created_by;
+  const auto add = [&out](const std::string& part) {
+    if (!part.empty()) out += (out.empty() ? "" : ", ") + part;
+  };
+  add(p.date);
+  if (p.rms_before_m || p.rms_after_m) {
+    const auto mm = [](const std::optional<double>& m) {
+      return m ? setting_number(*m * 1e3) : std::string("?");
+    };
+    add("rms " + mm(p.rms_before_m) + " -> " + mm(p.rms_after_m) + " mm");
+  }
+  if (p.samples) add(std::to_string(*p.samples) + " samples");
+  return out;
+}
+
 std::string to_yaml(const ServiceConfig& c) {
+  const auto n = [](double v) { return setting_number(v); };
+  const auto b = [](bool v) { return v ? "true" : "false"; };
+  const auto q = [](const std::string& v) { return setting_quoted(v); };
   std::ostringstream o;
-  o.precision(10);
   o << "# effective configuration of " << c.file << "\n";
-  o << "rig: " << c.rig << "\n";
-  o << "loop: {rate_hz: " << c.loop.rate_hz << ", cpu: " << c.loop.cpu
-    << ", priority: " << c.loop.priority
-    << ", lock_memory: " << (c.loop.lock_memory ? "true" : "false")
+  o << "config: {path: " << q(c.file) << ", sha256: " << c.config_sha256 << "}\n";
+  o << "rig: " << q(c.rig) << "\n";
+  o << "loop: {rate_hz: " << n(c.loop.rate_hz) << ", cpu: " << c.loop.cpu
+    << ", priority: " << c.loop.priority << ", lock_memory: " << b(c.loop.lock_memory)
     << ", fault_after_ms: " << c.loop.fault_after_ms
-    << ", status_rate_hz: " << c.loop.status_rate_hz << "}\n";
+    << ", status_rate_hz: " << n(c.loop.status_rate_hz) << "}\n";
   o << "source: " << drivers::describe(c.source) << "\n";
   o << "encoders:\n  cycles_per_rev: " << c.encoders.cycles_per_rev
-    << "\n  decoding: " << c.encoders.decoding << "\n  stale_ms: " << c.encoders.stale_ms
+    << "\n  decoding: " << c.encoders.decoding << "\n  stale_ms: " << n(c.encoders.stale_ms)
     << "\n  index_tolerance_counts: " << c.encoders.index_tolerance_counts
-    << "\n  limit_margin_deg: " << c.encoders.limit_margin_deg
-    << "\n  speed_margin: " << c.encoders.speed_margin
+    << "\n  limit_margin_deg: " << n(c.encoders.limit_margin_deg)
+    << "\n  speed_margin: " << n(c.encoders.speed_margin)
     << "\n  velocity_window: " << c.encoders.velocity_window
-    << "\n  fault_hold_ms: " << c.encoders.fault_hold_ms << "\n  joints:\n";
+    << "\n  fault_hold_ms: " << n(c.encoders.fault_hold_ms) << "\n  joints:\n";
   for (const auto& j : c.encoders.joints) {
     o << "    - {channel: " << j.channel << ", direction: " << j.direction
-      << ", gear_ratio: " << j.gear_ratio << ", max_speed_rad_s: " << j.max_speed_rad_s << "}\n";
+      << ", gear_ratio: " << n(j.gear_ratio) << ", max_speed_rad_s: " << n(j.max_speed_rad_s)
+      << "}\n";
   }
-  o << "model: " << c.model_path << "  # " << c.model.name << "\n";
-  o << "calibration: " << c.calibration_path << "\n";
-  o << "calibration_offsets_deg: [";
+  o << "model: {path: " << q(c.model_path) << ", sha256: " << c.model_sha256
+    << ", name: " << q(c.model.name) << ", joint_names: [";
+  for (int i = 0; i < c.model.chain.joint_count(); ++i) {
+    o << (i ? ", " : "") << q(c.model.chain.joints()[static_cast<std::size_t>(i)].name);
+  }
+  o << "]}\n";
+  o << "calibration: {path: " << q(c.calibration_path) << ", sha256: " << c.calibration_sha256
+    << ", provenance: " << q(provenance_text(c.calibration.provenance))
+    << ", encoder_offsets_deg: [";
   for (int i = 0; i < kJointCount; ++i) {
     o << (i ? ", " : "")
-      << c.calibration.encoder_offset_rad[static_cast<std::size_t>(i)] / kDegToRad;
+      << n(c.calibration.encoder_offset_rad[static_cast<std::size_t>(i)] / kDegToRad);
   }
-  o << "]\n";
-  o << "kinematics: {singularity_threshold: " << c.singularity_threshold << "}\n";
-  o << "lcm: {url: \"" << c.lcm.url << "\", prefix: \"" << c.lcm.prefix
-    << "\", publish_raw: " << (c.lcm.publish_raw ? "true" : "false") << "}\n";
-  const char* req = c.clock.require_sync == RequireSync::kIgnore ? "ignore"
-                    : c.clock.require_sync == RequireSync::kHold ? "hold"
-                                                                 : "mark";
-  o << "clock: {require_sync: " << req << ", max_est_error_us: " << c.clock.max_est_error_us
-    << ", max_max_error_us: " << c.clock.max_max_error_us
-    << ", step_threshold_ms: " << static_cast<double>(c.clock.step_threshold_ns) / 1e6
-    << ", slew_ppm: " << c.clock.slew_ppm << ", step_slew_ppm: " << c.clock.step_slew_ppm << "}\n";
+  o << "]}\n";
+  o << "kinematics: {singularity_threshold: " << n(c.singularity_threshold) << "}\n";
+  o << "lcm: {url: " << q(c.lcm.url) << ", prefix: " << q(c.lcm.prefix)
+    << ", publish_raw: " << b(c.lcm.publish_raw) << "}\n";
+  o << "clock: {require_sync: " << require_sync_name(c.clock.require_sync)
+    << ", max_est_error_us: " << n(c.clock.max_est_error_us)
+    << ", max_max_error_us: " << n(c.clock.max_max_error_us)
+    << ", step_threshold_ms: " << n(static_cast<double>(c.clock.step_threshold_ns) / 1e6)
+    << ", slew_ppm: " << n(c.clock.slew_ppm) << ", step_slew_ppm: " << n(c.clock.step_slew_ppm)
+    << "}\n";
   o << "logging: {level: " << c.logging.level << ", sink: " << c.logging.sink << "}\n";
   return o.str();
 }

@@ -120,6 +120,10 @@ static void print_status(const exodaq_status_t* m) {
   I(clock_synchronised);
   D(clock_est_error_us), D(clock_max_error_us), D(clock_offset_us), D(utime_correction_us);
   I(clock_steps);
+  S(config_path), S(config_sha256), S(calibration_path), S(calibration_sha256);
+  S(calibration_provenance);
+  I(reloads);
+  I(foreign_run_id);
   SA(joint_name, 6);
   IA(homing, 6);
   IA(joint_flags, 6);

@@ -164,6 +164,13 @@ status_t make_status() {
   m.clock_offset_us = -3.25;
   m.utime_correction_us = 0.5;
   m.clock_steps = 1;
+  m.config_path = "/etc/exodaq/exodaqd.yaml";
+  m.config_sha256 = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad";
+  m.calibration_path = "/etc/exodaq/calibration/rig-2.yaml";
+  m.calibration_sha256 = "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855";
+  m.calibration_provenance = "exodaq calibrate 0.1.0, 2026-11-22, rms 4.1 -> 0.8 mm, 1200 samples";
+  m.reloads = 3;
+  m.foreign_run_id = 0x0123456789abcdefLL;
   const int8_t homing[6] = {status_t::HOMING_HOMED,    status_t::HOMING_UNHOMED,
                             status_t::HOMING_HOMED,    status_t::HOMING_HOMED,
                             status_t::HOMING_REJECTED, status_t::HOMING_HOMED};
@@ -244,8 +251,10 @@ void dump(const status_t& m) {
       D(publish_failures), D(source), D(frames), D(bad_frames), D(missing_samples), D(seq_gaps),
       D(duplicates), D(out_of_order), D(bus_errors), D(rx_overflows), D(bus_state), D(board_errors),
       D(clock_synchronised), D(clock_est_error_us), D(clock_max_error_us), D(clock_offset_us),
-      D(utime_correction_us), D(clock_steps), D(joint_name), D(homing), D(joint_flags), D(glitches),
-      D(lost_count_events), D(stale_events), D(out_of_range_events);
+      D(utime_correction_us), D(clock_steps), D(config_path), D(config_sha256), D(calibration_path),
+      D(calibration_sha256), D(calibration_provenance), D(reloads), D(foreign_run_id),
+      D(joint_name), D(homing), D(joint_flags), D(glitches), D(lost_count_events), D(stale_events),
+      D(out_of_range_events);
 }
 #undef D
 

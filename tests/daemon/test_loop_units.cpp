@@ -354,3 +354,42 @@ TEST(ConfigHandover, TheLoopTakesTheLatestStagedConfiguration) {
   EXPECT_DOUBLE_EQ(handover.active().rig.singularity_threshold, 3.0);
   EXPECT_EQ(handover.take_staged(), nullptr);
 }
+
+// status_t names the files in effect: cut to its limits by
+// make_pipeline_config, switched by a reload without allocating.
+TEST(StatusAssembler, TheFilesInEffectFollowAReloadWithoutAllocating) {
+  auto cfg = sim_config();
+  const auto first = core::make_pipeline_config(cfg);
+  const core::Pipeline pipeline(*first);
+  core::ClockShared clock;
+  core::StatusSettings settings;
+  settings.joint_names = core::make_acquisition_config(cfg).joint_names;
+  core::StatusAssembler status(settings, pipeline, clock);
+  status.warm_up();
+  EXPECT_EQ(status.message().config_path, cfg.file);
+  EXPECT_EQ(status.message().config_sha256, cfg.config_sha256);
+  EXPECT_EQ(status.message().config_sha256.size(), 64u);
+  EXPECT_EQ(status.message().calibration_sha256, cfg.calibration_sha256);
+  EXPECT_EQ(status.message().reloads, 0);
+
+  // A long path keeps its end; a long provenance its start, cut between
+  // UTF-8 characters ("é" is 2 bytes and would straddle byte 77).
+  cfg.file = "/" + std::string(150, 'd') + "/exodaqd.yaml";
+  cfg.calibration.provenance = {};
+  cfg.calibration.provenance.created_by = std::string(76, 'x') + "\xc3\xa9" + std::string(20, 'y');
+  cfg.config_sha256 = std::string(64, 'a');
+  const auto next = core::make_pipeline_config(cfg);
+  ASSERT_EQ(next->files.config_path.size(), core::ConfigFiles::kMaxPathBytes);
+  EXPECT_EQ(next->files.config_path.substr(0, 3), "...");
+  EXPECT_TRUE(next->files.config_path.ends_with("ddd/exodaqd.yaml"));
+  EXPECT_EQ(next->files.calibration_provenance, std::string(76, 'x') + "...");
+  {
+    test::AllocationScope scope;
+    status.use_files(next->files, 1);
+    EXPECT_EQ(scope.count(), 0u);
+  }
+  EXPECT_EQ(status.message().config_path, next->files.config_path);
+  EXPECT_EQ(status.message().config_sha256, std::string(64, 'a'));
+  EXPECT_EQ(status.message().calibration_provenance, next->files.calibration_provenance);
+  EXPECT_EQ(status.message().reloads, 1);
+}

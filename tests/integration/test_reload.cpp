@@ -7,8 +7,10 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <regex>
 #include <thread>
 
+#include "exodaq/config/content_hash.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
@@ -120,4 +122,120 @@ TEST(Reload, SighupAppliesANewCalibrationWithoutAGapAndRejectsABadOne) {
   EXPECT_LE(gaps, overruns) << "cycles lost around the reloads";
   EXPECT_GT(switched_at, 1500);
   EXPECT_GT(after, 1000);
+}
+
+namespace {
+bool wait_for(const std::string& path, const std::string& text, int count = 1) {
+  for (int i = 0; i < 2000; ++i) {  // 20 s: the log is flushed once a second
+    const std::string t = test::read_file(path);
+    int n = 0;
+    for (auto at = t.find(text); at != std::string::npos; at = t.find(text, at + 1)) ++n;
+    if (n >= count) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
+// The statuses recorded so far.
+std::vector<exodaq::status_t> statuses_in(const std::string& file) {
+  std::vector<exodaq::status_t> out;
+  for (const auto& m : test::read_recorder_file(file))
+    out.push_back(test::decode<exodaq::status_t>(m.data));
+  return out;
+}
+
+bool wait_for_status(const std::string& file, int reloads) {
+  for (int i = 0; i < 2000; ++i) {
+    for (const auto& s : statuses_in(file)) {
+      if (s.reloads == reloads) return true;
+    }
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
+int occurrences(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+}  // namespace
+
+// Issue 15.4: each setting the reproductions changed is either applied live
+// or warned about, on every SIGHUP that carries it, and status_t names the
+// configuration and calibration in effect.
+TEST(Reload, EveryRestartOnlyChangeIsWarnedOnEverySighupAndStatusShowsTheFilesInEffect) {
+  const std::string dir = test::make_temp_dir("reload-truth");
+  const std::string prefix = test::unique_prefix("reloadtruth");
+  const std::string config = test::write_sim_config(dir, prefix);
+  const std::string started_text = test::read_file(config);
+  const auto started = config::load_service_config(config);
+  const std::string log = dir + "/d.err";
+  test::Process recorder({EXODAQ_RECORDER, test::kRecordUrl, prefix + "EXO_STATUS", dir + "/s.bin"},
+                         "", dir + "/rec.err");
+  ASSERT_TRUE(wait_for(dir + "/rec.err", "lcm_recorder: ready"));
+  test::Process daemon({EXODAQD, "--config", config}, dir + "/d.out", log);
+  ASSERT_TRUE(wait_for_status(dir + "/s.bin", 0)) << test::read_file(log);
+
+  // The reproductions: lock_memory, fault_after_ms, status_rate_hz,
+  // publish_raw: false, a renamed joint, logging.level.
+  const std::string model = dir + "/model.yaml";
+  std::ofstream(model) << std::regex_replace(
+      test::read_file(std::string(EXODAQ_SOURCE_DIR) + "/config/models/macaque_exo.yaml"),
+      std::regex("elbow_flexion"), "elbow");
+  std::string text = started_text;
+  const auto edit = [&text](const std::string& from, const std::string& to) {
+    const auto at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+  };
+  edit("lock_memory: false", "lock_memory: true");
+  edit("fault_after_ms: 500", "fault_after_ms: 400\n  status_rate_hz: 20");
+  edit("publish_raw: true", "publish_raw: false");
+  edit("level: info", "level: debug");
+  edit("model: " + started.model_path, "model: " + model);
+  write_atomically(config, text);
+  const std::string changed_sha = config::sha256_hex(text);
+
+  const std::string warned = "restart-only setting(s) changed, NOT applied until exodaqd restarts";
+  daemon.signal(SIGHUP);
+  ASSERT_TRUE(wait_for(log, warned)) << test::read_file(log);
+  // The same file again: the running values still differ, so it warns again.
+  daemon.signal(SIGHUP);
+  ASSERT_TRUE(wait_for(log, warned, 2)) << test::read_file(log);
+  ASSERT_TRUE(wait_for_status(dir + "/s.bin", 2)) << test::read_file(log);
+  daemon.signal(SIGTERM);
+  ASSERT_EQ(daemon.wait(20s).value_or(-1), 0);
+  std::this_thread::sleep_for(300ms);
+  recorder.signal(SIGTERM);
+  recorder.wait(5s);
+
+  const std::string out = test::read_file(log);
+  EXPECT_EQ(occurrences(out, "warning reload: 5 " + warned), 2) << out;
+  for (const char* change : {"loop.lock_memory (false -> true)", "loop.fault_after_ms (500 -> 400)",
+                             "loop.status_rate_hz (10 -> 20)", "lcm.publish_raw (true -> false)",
+                             "model.joint_names[4] (elbow_flexion -> elbow)"}) {
+    EXPECT_EQ(occurrences(out, change), 2) << change << "\n" << out;
+  }
+  // logging.level is live: applied at the first reload, reported once.
+  EXPECT_EQ(occurrences(out, "logging.level (info -> debug)"), 1) << out;
+  EXPECT_NE(out.find("; 0 live change(s)"), std::string::npos) << out;
+
+  const auto statuses = statuses_in(dir + "/s.bin");
+  ASSERT_GT(statuses.size(), 2U);
+  const auto& first = statuses.front();
+  EXPECT_EQ(first.reloads, 0);
+  EXPECT_EQ(first.config_path, config);
+  EXPECT_EQ(first.config_sha256, config::sha256_hex(started_text));
+  const auto& last = statuses.back();
+  EXPECT_EQ(last.state, static_cast<std::int8_t>(exodaq::status_t::STATE_STOPPING));
+  EXPECT_EQ(last.reloads, 2);
+  EXPECT_EQ(last.config_path, config);
+  EXPECT_EQ(last.config_sha256, changed_sha);
+  EXPECT_EQ(last.calibration_path, started.calibration_path);
+  EXPECT_EQ(last.calibration_sha256, config::sha256_hex(test::read_file(started.calibration_path)));
+  EXPECT_EQ(last.calibration_provenance, "hand-written for the simulated rig, 2026-11-22");
+  // The restart-only settings kept their running values: the joint names
+  // published are the start-up ones, statuses still at 10 Hz.
+  EXPECT_EQ(last.joint_name[4], "elbow_flexion");
 }

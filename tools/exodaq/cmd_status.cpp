@@ -75,6 +75,10 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
       clock_state_text(s, o.clock_policy).c_str(), clock_error_text(s.clock_est_error_us).c_str(),
       clock_error_text(s.clock_max_error_us).c_str(), s.clock_offset_us, s.utime_correction_us,
       ll(s.clock_steps));
+  std::printf("config   %s  sha256 %s  reloads %d\n", s.config_path.c_str(),
+              s.config_sha256.c_str(), s.reloads);
+  std::printf("calib    %s  sha256 %s\n         %s\n", s.calibration_path.c_str(),
+              s.calibration_sha256.c_str(), s.calibration_provenance.c_str());
   std::printf("%-20s %-9s %8s %8s %8s %8s  %s\n", "joint", "homing", "glitch", "lost", "stale",
               "range", "flags (window)");
   for (int i = 0; i < 6; ++i) {
@@ -99,6 +103,15 @@ void print_json(const std::string& channel, const status_t& s) {
     out += ",\n  " + json_string(names[i]) + ": " +
            (text ? json_string(values[i]) : json_value(values[i]));
   }
+  // The files in effect (not CSV columns: export keeps its schema).
+  for (const auto& [name, value] : {std::pair{"config_path", &s.config_path},
+                                    {"config_sha256", &s.config_sha256},
+                                    {"calibration_path", &s.calibration_path},
+                                    {"calibration_sha256", &s.calibration_sha256},
+                                    {"calibration_provenance", &s.calibration_provenance}}) {
+    out += ",\n  " + json_string(name) + ": " + json_string(*value);
+  }
+  out += ",\n  \"reloads\": " + std::to_string(s.reloads);
   std::printf("%s\n}\n", out.c_str());
 }
 

@@ -111,6 +111,9 @@ class Acquisition {
   SourceCounters source_counters() const noexcept;
   // Whether the loop thread got the scheduling/locking it asked for.
   const std::string& realtime_report() const noexcept { return realtime_report_; }
+  // Something asked for (SCHED_FIFO, CPU pinning, mlockall) was refused: the
+  // daemon logs realtime_report() as a warning. Visible as realtime_report().
+  bool realtime_refused() const noexcept { return realtime_refused_; }
 
   // The recorded wake-up lateness (ns) of each cycle, valid after stop().
   const std::vector<std::int32_t>& lateness_record() const noexcept { return lateness_record_; }
@@ -180,6 +183,8 @@ class Acquisition {
   bool started_ = false;
   bool stopped_ = false;
   std::string realtime_report_;
+  bool realtime_refused_ = false;
+  std::int32_t reloads_ = 0;  // configurations taken from stage_reload()
   std::vector<std::int32_t> lateness_record_;
 };
 

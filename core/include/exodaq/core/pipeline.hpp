@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <optional>
+#include <string>
 
 #include "exodaq/core/clock.hpp"
 #include "exodaq/core/joint_tracker.hpp"
@@ -25,6 +26,21 @@ inline constexpr std::uint32_t kSource = wire::palm_pose::INVALID_SOURCE;
 inline constexpr std::uint32_t kClock = wire::palm_pose::INVALID_CLOCK;
 }  // namespace invalid_reason
 
+// The configuration and calibration files in effect, as status_t carries
+// them: paths at most kMaxPathBytes (a longer one keeps its end after
+// "..."), content hashes of 64 hex digits, provenance at most
+// kMaxProvenanceBytes. make_pipeline_config() cuts them.
+struct ConfigFiles {
+  static constexpr std::size_t kMaxPathBytes = 112;
+  static constexpr std::size_t kMaxHashBytes = 64;
+  static constexpr std::size_t kMaxProvenanceBytes = 80;
+  std::string config_path;
+  std::string config_sha256;
+  std::string calibration_path;
+  std::string calibration_sha256;
+  std::string calibration_provenance;
+};
+
 struct PipelineConfig {
   std::array<JointTrackerConfig, kJointCount> joints;
   kin::Chain chain;  // with the calibration's DH deviations and palm offset applied
@@ -32,6 +48,8 @@ struct PipelineConfig {
   // Set by a reload (Acquisition::stage_reload): the loop's new clock policy,
   // handed over with the rest of the configuration.
   std::optional<ClockPolicy> clock;
+  // The files it came from, for status_t (cut to its field limits).
+  ConfigFiles files;
 };
 
 // Everything one cycle publishes.
@@ -68,6 +86,7 @@ class Pipeline {
                bool clock_invalid, CycleResult& out) noexcept;
 
   const JointTracker& joint(int i) const noexcept { return trackers_[static_cast<std::size_t>(i)]; }
+  const PipelineConfig& config() const noexcept { return *config_; }
 
  private:
   const PipelineConfig* config_;

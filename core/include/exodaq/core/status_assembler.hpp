@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 
 #include "exodaq/core/clock.hpp"
 #include "exodaq/core/health.hpp"
@@ -47,6 +48,11 @@ class StatusAssembler {
   // Start-up: checks that the largest status_t fits a publisher slot (throws if not).
   void warm_up();
 
+  // The files in effect (at start-up, and at each reload the loop takes) and
+  // the reloads applied since start. Assigned within capacity reserved at
+  // construction: `files` must keep ConfigFiles' limits.
+  void use_files(const ConfigFiles& files, std::int32_t reloads) noexcept;
+
   // Every cycle. `clock_hold`: unsynchronised under require_sync: hold.
   // `new_wake`: false for a sample caught up in the same wake (its timing is
   // the wake's, counted once).
@@ -60,6 +66,8 @@ class StatusAssembler {
   const exodaq::status_t& message() const noexcept { return status_; }
 
  private:
+  // The status_t strings naming the files in effect, each with its limit.
+  std::array<std::pair<std::string*, std::size_t>, 5> file_fields() noexcept;
   void fill_timing(const WindowEnd& end) noexcept;
   void fill_counters(const WindowEnd& end) noexcept;
   void fill_joints_and_text(ServiceState state, const WindowEnd& end) noexcept;

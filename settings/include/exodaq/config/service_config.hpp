@@ -80,6 +80,10 @@ struct LoggingSettings {
 
 struct ServiceConfig {
   std::string file;
+  // sha256_hex() of the bytes each file was parsed from (content_hash.hpp).
+  std::string config_sha256;
+  std::string model_sha256;
+  std::string calibration_sha256;
   std::string rig = "rig";
   LoopSettings loop;
   drivers::SourceOptions source;
@@ -104,7 +108,12 @@ drivers::SourceContext make_source_context(const ServiceConfig& config);
 // The loop period of a configuration, ns.
 std::int64_t period_ns(const ServiceConfig& config);
 
-// A readable dump (YAML) of the effective configuration (--print-config).
+// A readable dump (YAML) of the effective configuration (--print-config):
+// every setting once, under the key settings_of() (setting_classes.hpp) gives it.
 std::string to_yaml(const ServiceConfig& config);
+
+// The calibration's provenance in one line: "created_by, date, rms before ->
+// after mm, N samples" (the parts the file has).
+std::string provenance_text(const CalibrationProvenance& p);
 
 }  // namespace exodaq::config
