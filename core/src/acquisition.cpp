@@ -80,7 +80,7 @@ Acquisition::Acquisition(AcquisitionConfig config, std::unique_ptr<PipelineConfi
       time_base_(
           make_time_base(*source_, clock_shared_, config_.clock, config_.period_ns, *loop_clock_)),
       run_id_(config_.run_id != 0 ? config_.run_id : new_run_id()),
-      encoder_(config_.joint_names, run_id_, config_.publish_raw),
+      encoder_(config_.joint_names, run_id_, config_.publish_raw, config_.period_ns),
       status_(status_settings(config_, *source_, *time_base_, run_id_), pipeline_, clock_shared_) {
   if (config_.status_every_cycles < 1) config_.status_every_cycles = 1;
   if (config_.max_samples_per_wake < 1) config_.max_samples_per_wake = 1;
@@ -93,6 +93,7 @@ Acquisition::~Acquisition() {
 void Acquisition::prepare_for_manual_cycles() {
   if (started_) return;
   source_->start();
+  if (const drivers::JointResumeSet* resume = source_->resume_state()) pipeline_.resume(*resume);
   clock_monitor_ = std::make_unique<ClockMonitor>(*clock_, config_.clock, clock_shared_);
   encoder_.warm_up();
   status_.warm_up();
@@ -245,6 +246,7 @@ void Acquisition::publish_sample(std::int64_t deadline_ns, std::int64_t wake_ns,
   result_.mono_ns = sample_.mono_ns;
   last_emitted_mono_ns_ = sample_.mono_ns;
   result_.utime_us = time.utime_us;
+  encoder_.publish_homing(result_, pipeline_, publisher_);
   encoder_.publish(result_, sample_, publisher_);
   push_joint_events();
 

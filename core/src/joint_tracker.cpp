@@ -95,6 +95,32 @@ void JointTracker::home_on_index(std::int64_t index_count, JointEvent& event) no
   event = JointEvent::kHomed;
 }
 
+void JointTracker::resume(const drivers::JointResume& r) noexcept {
+  if (!r.counted || have_count_) return;
+  resume_pending_ = true;
+  resume_count_ = r.count;
+  powerup_count_ = r.powerup_count;
+  homing_ = r.homing == wire::status::HOMING_HOMED      ? HomingState::kHomed
+            : r.homing == wire::status::HOMING_REJECTED ? HomingState::kRejected
+                                                        : HomingState::kUnhomed;
+  ref_count_ = r.index_count;
+  ref_turns_ = r.index_turns;
+}
+
+HomingReference JointTracker::homing_reference() const noexcept {
+  HomingReference h;
+  h.counted = have_count_;
+  h.count = count_;
+  h.powerup_count = powerup_count_;
+  h.homing = homing_;
+  h.index_count = ref_count_;
+  h.index_turns = ref_turns_;
+  h.index_angle_rad = config_.offset_rad + static_cast<double>(ref_turns_) *
+                                               static_cast<double>(config_.counts_per_rev) *
+                                               rad_per_count_;
+  return h;
+}
+
 // Bounds on a sample's distance from the anchor that keep every sum exact in
 // 128 bits (64 samples: n * sum_tt < 2^109, sum_t * sum_c < 2^101).
 constexpr std::int64_t kFitMaxDt = std::int64_t{1} << 48;  // ns: 3.3 days
@@ -195,8 +221,13 @@ void JointTracker::take_count(std::int64_t t_ns, std::uint16_t count16,
                               JointEvent& event) noexcept {
   if (!have_count_) {
     have_count_ = true;
-    count_ = count16;
-    powerup_count_ = count_;
+    if (resume_pending_) {
+      count_ = resume_count_ + step16(resume_count_, count16);
+      resume_pending_ = false;
+    } else {
+      count_ = count16;
+      powerup_count_ = count_;
+    }
   } else {
     const std::int64_t step = step16(count_, count16);
     const double dt_s = static_cast<double>(t_ns - last_fresh_ns_) * 1e-9;

@@ -8,17 +8,18 @@
 namespace exodaq::core {
 
 MessageEncoder::MessageEncoder(const std::array<std::string, kJointCount>& joint_names,
-                               std::int64_t run_id, bool publish_raw)
-    : publish_raw_(publish_raw) {
+                               std::int64_t run_id, bool publish_raw, std::int64_t period_ns)
+    : publish_raw_(publish_raw),
+      homing_every_(period_ns > 0 && period_ns < 1'000'000'000 ? 1'000'000'000 / period_ns : 1) {
   for (int i = 0; i < kJointCount; ++i) joint_.name[i] = joint_names[static_cast<std::size_t>(i)];
-  joint_.run_id = palm_.run_id = raw_.run_id = run_id;
+  joint_.run_id = palm_.run_id = raw_.run_id = homing_.run_id = run_id;
 }
 
 void MessageEncoder::warm_up() const {
   std::vector<std::uint8_t> scratch(kMaxMessageBytes);
   const int cap = static_cast<int>(scratch.size());
   if (joint_.encode(scratch.data(), 0, cap) < 0 || palm_.encode(scratch.data(), 0, cap) < 0 ||
-      raw_.encode(scratch.data(), 0, cap) < 0) {
+      raw_.encode(scratch.data(), 0, cap) < 0 || homing_.encode(scratch.data(), 0, cap) < 0) {
     throw std::runtime_error("message larger than a publisher slot");
   }
 }
@@ -56,6 +57,31 @@ void MessageEncoder::publish(const CycleResult& r, const drivers::EncoderSample&
     publish_encoded(publisher, msg::Kind::kEncoderRaw, raw_, r.utime_us);
   }
   publisher.notify();
+}
+
+void MessageEncoder::publish_homing(const CycleResult& r, const Pipeline& pipeline,
+                                    Publisher& publisher) noexcept {
+  if (!publish_raw_) return;
+  std::int32_t changed = 0;
+  for (int i = 0; i < kJointCount; ++i) {
+    const HomingReference h = pipeline.joint(i).homing_reference();
+    auto& last = last_reference_[static_cast<std::size_t>(i)];
+    if (!h.same_reference(last)) changed |= 1 << i;
+    last = h;
+    homing_.counted[i] = h.counted;
+    homing_.count[i] = h.count;
+    homing_.powerup_count[i] = h.powerup_count;
+    homing_.homing[i] = static_cast<std::int8_t>(h.homing);
+    homing_.index_count[i] = h.index_count;
+    homing_.index_turns[i] = h.index_turns;
+    homing_.index_angle[i] = h.index_angle_rad;
+  }
+  if (changed == 0 && r.seq % homing_every_ != 0) return;
+  homing_.utime = r.utime_us;
+  homing_.mono_ns = r.mono_ns;
+  homing_.seq = r.seq;
+  homing_.changed = changed;
+  publish_encoded(publisher, msg::Kind::kHoming, homing_, r.utime_us);
 }
 
 }  // namespace exodaq::core

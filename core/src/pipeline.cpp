@@ -17,6 +17,12 @@ void Pipeline::use(const PipelineConfig& config) noexcept {
   }
 }
 
+void Pipeline::resume(const drivers::JointResumeSet& joints) noexcept {
+  for (int i = 0; i < kJointCount; ++i) {
+    trackers_[static_cast<std::size_t>(i)].resume(joints[static_cast<std::size_t>(i)]);
+  }
+}
+
 void Pipeline::process(const drivers::EncoderSample& sample, std::uint32_t extra_sample_flags,
                        bool clock_invalid, CycleResult& out) noexcept {
   out.sample_flags = sample.flags | extra_sample_flags;

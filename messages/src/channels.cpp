@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/homing_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
 #include "exodaq/status_t.hpp"
@@ -24,6 +25,7 @@ constexpr std::array<KindInfo, kKindCount> kInfo = {{
     {Kind::kPalmPose, "EXO_PALM_POSE", "palm_pose_t", "palm_pose"},
     {Kind::kEncoderRaw, "EXO_ENCODER_RAW", "encoder_raw_t", "encoder_raw"},
     {Kind::kStatus, "EXO_STATUS", "status_t", "status"},
+    {Kind::kHoming, "EXO_HOMING", "homing_t", "homing"},
 }};
 
 const KindInfo& info(Kind k) noexcept {
@@ -85,6 +87,7 @@ std::optional<Kind> kind_of_payload(const void* data, std::size_t size) noexcept
   if (fp == fingerprint<palm_pose_t>()) return Kind::kPalmPose;
   if (fp == fingerprint<encoder_raw_t>()) return Kind::kEncoderRaw;
   if (fp == fingerprint<status_t>()) return Kind::kStatus;
+  if (fp == fingerprint<homing_t>()) return Kind::kHoming;
   return std::nullopt;
 }
 

@@ -104,6 +104,26 @@ void raw_values(const encoder_raw_t& m, std::vector<std::string>& out) {
   }
 }
 
+// homing_t: arrays by joint (numbered: the record carries no names).
+void homing_header(std::vector<std::string>& h) {
+  h.emplace_back("changed");
+  for (const char* f : {"counted_j", "count_j", "powerup_count_j", "homing_j", "index_count_j",
+                        "index_turns_j", "index_angle_rad_j"}) {
+    for (int c = 0; c < kJoints; ++c) h.push_back(f + std::to_string(c + 1));
+  }
+}
+
+void homing_values(const homing_t& m, std::vector<std::string>& out) {
+  out.push_back(num(m.changed));
+  each(m.counted, out, kBool);
+  each(m.count, out, kNum);
+  each(m.powerup_count, out, kNum);
+  each(m.homing, out, kNum);
+  each(m.index_count, out, kNum);
+  each(m.index_turns, out, kNum);
+  each(m.index_angle, out, kDbl);
+}
+
 // status_t
 constexpr const char* kStatusTimingColumns[] = {
     "period_p50_us",   "period_p99_us", "period_max_us", "lateness_p50_us", "lateness_p99_us",
@@ -210,6 +230,9 @@ std::vector<std::string> header(Kind k, const JointNames& joints) {
     case Kind::kStatus:
       status_header(h, joints);
       break;
+    case Kind::kHoming:
+      homing_header(h);
+      break;
   }
   return h;
 }
@@ -229,6 +252,7 @@ void append_values(const Message& m, std::vector<std::string>& out) {
         if constexpr (std::is_same_v<T, palm_pose_t>) palm_values(v, out);
         if constexpr (std::is_same_v<T, encoder_raw_t>) raw_values(v, out);
         if constexpr (std::is_same_v<T, status_t>) status_values(v, out);
+        if constexpr (std::is_same_v<T, homing_t>) homing_values(v, out);
       },
       m);
 }

@@ -13,6 +13,7 @@ Kind kind_of(const Message& m) noexcept {
         if constexpr (std::is_same_v<T, palm_pose_t>) return Kind::kPalmPose;
         if constexpr (std::is_same_v<T, encoder_raw_t>) return Kind::kEncoderRaw;
         if constexpr (std::is_same_v<T, status_t>) return Kind::kStatus;
+        if constexpr (std::is_same_v<T, homing_t>) return Kind::kHoming;
       },
       m);
 }
@@ -36,6 +37,8 @@ std::optional<Message> decode(Kind k, const void* data, std::size_t size) {
       return decode_as<encoder_raw_t>(data, size);
     case Kind::kStatus:
       return decode_as<status_t>(data, size);
+    case Kind::kHoming:
+      return decode_as<homing_t>(data, size);
   }
   return std::nullopt;
 }

@@ -16,6 +16,7 @@
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
+#include "exodaq/homing_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
 #include "exodaq/status_t.hpp"
@@ -134,7 +135,7 @@ class StallingSource final : public drivers::EncoderSource {
 class MemorySink final : public core::MessageSink {
  public:
   bool keep = false;
-  std::array<std::int64_t, 4> counts{};
+  std::array<std::int64_t, exodaq::msg::kKindCount> counts{};
   std::mutex mutex;
   std::vector<std::pair<exodaq::msg::Kind, std::vector<std::uint8_t>>> kept;
   bool publish(const std::string&, const core::OutgoingMessage& msg) noexcept override {
@@ -187,6 +188,34 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
   EXPECT_EQ(sink->counts[1], 1000);
   EXPECT_EQ(sink->counts[2], 1000);
   EXPECT_EQ(sink->counts[3], 10);
+
+  // homing_t: at seq 0 (once a second) and in each cycle a joint homed, with
+  // that joint's bit in `changed` and its reference from then on.
+  std::map<std::int64_t, exodaq::homing_t> homing;
+  for (const auto& [channel, bytes] : sink->kept) {
+    if (channel != exodaq::msg::Kind::kHoming) continue;
+    const auto h = decode<exodaq::homing_t>(bytes);
+    EXPECT_TRUE(h.seq % 1000 == 0 || h.changed != 0) << "seq " << h.seq;
+    EXPECT_EQ(h.run_id, acq->run_id());
+    homing[h.seq] = h;
+  }
+  EXPECT_EQ(static_cast<std::int64_t>(homing.size()), sink->counts[4]);
+  ASSERT_EQ(homing.count(0), 1U);
+  std::array<bool, 6> was_homed{};
+  for (const auto& [channel, bytes] : sink->kept) {
+    if (channel != exodaq::msg::Kind::kJointState) continue;
+    const auto js = decode<exodaq::joint_state_t>(bytes);
+    for (int j = 0; j < 6; ++j) {
+      if (js.homed[j] && !was_homed[static_cast<std::size_t>(j)]) {
+        ASSERT_EQ(homing.count(js.seq), 1U) << "joint " << j << " homed at seq " << js.seq;
+        const auto& h = homing.at(js.seq);
+        EXPECT_NE(h.changed & (1 << j), 0) << "seq " << js.seq;
+        EXPECT_EQ(int{h.homing[j]}, int{exodaq::status_t::HOMING_HOMED});
+        EXPECT_EQ(h.count[j], js.raw_count[j]);
+      }
+      was_homed[static_cast<std::size_t>(j)] = js.homed[j] != 0;
+    }
+  }
 
   std::int64_t expected_seq = 0;
   for (const auto& [channel, bytes] : sink->kept) {

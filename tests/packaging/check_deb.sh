@@ -57,7 +57,7 @@ done
 py=./usr/lib/python3/dist-packages
 for f in $py/exodaq/__init__.py $py/exodaq/client.py $py/exodaq/udpm.py $py/exodaq/names.py \
   $py/exodaq/joint_state_t.py $py/exodaq/palm_pose_t.py $py/exodaq/encoder_raw_t.py \
-  $py/exodaq/status_t.py $py/exodaq/_version.py $py/exodaq_lcm.py; do
+  $py/exodaq/status_t.py $py/exodaq/homing_t.py $py/exodaq/_version.py $py/exodaq_lcm.py; do
   grep -qx "$f" "$work/files" || fail "package lacks $f"
 done
 grep -qx "$py/exodaq-[0-9.]*\.egg-info/PKG-INFO" "$work/files" || fail "package lacks the egg-info"

@@ -21,6 +21,7 @@
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/homing_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/message.hpp"
@@ -176,6 +177,187 @@ TEST_F(ReplayLive, ReproducesLiveJointAndPalmMessagesExactly) {
   }
 }
 
+// Issue 16: a recording started while the service runs (an excerpt cut from
+// the middle of the live recording, by event time) replays to the live
+// values, continuing the live homing from the recorded homing_t.
+struct Excerpt {
+  std::string path;
+  std::int64_t first_seq = -1;
+  std::int64_t raw_count = 0;
+};
+
+Excerpt cut_excerpt(const std::vector<LogEvent>& log, const std::string& raw_channel, double from_s,
+                    double to_s, const std::string& path) {
+  const std::int64_t t0 = log.front().timestamp;
+  std::vector<LogEvent> part;
+  Excerpt x;
+  x.path = path;
+  for (const auto& e : log) {
+    const double t = static_cast<double>(e.timestamp - t0) * 1e-6;
+    if (t < from_s || t >= to_s) continue;
+    part.push_back(e);
+    if (e.channel == raw_channel) {
+      encoder_raw_t m;
+      if (m.decode(e.data.data(), 0, static_cast<int>(e.data.size())) < 0) continue;
+      if (x.first_seq < 0) x.first_seq = m.seq;
+      ++x.raw_count;
+    }
+  }
+  write_log(path, part);
+  return x;
+}
+
+// Every replayed cycle of the excerpt equals the reference's of the same seq,
+// the replay mark aside; a joint's velocity from its 21st fresh sample in the
+// excerpt on (velocity_window 21: before that, the live fit used samples from
+// before the excerpt). Returns the cycles compared and how many had a valid pose.
+std::pair<std::size_t, std::size_t> expect_same_cycles(
+    const std::map<std::int64_t, joint_state_t>& ref_joint,
+    const std::map<std::int64_t, palm_pose_t>& ref_palm, const std::string& replay,
+    const std::string& p, std::int64_t first_seq, bool ref_is_replay) {
+  const auto log = read_log(replay);
+  const auto rep_joint = messages_by_seq<joint_state_t>(log, p + "EXO_JOINT_STATE");
+  const auto rep_palm = messages_by_seq<palm_pose_t>(log, p + "EXO_PALM_POSE");
+  constexpr int kWindow = 21;
+  std::array<int, 6> fresh{};
+  std::size_t compared = 0;
+  std::size_t valid = 0;
+  for (const auto& [seq, rj0] : rep_joint) {
+    for (std::size_t j = 0; j < 6; ++j) {
+      if ((rj0.flags[j] & joint_state_t::JOINT_HELD) == 0) ++fresh[j];
+    }
+    if (ref_joint.count(seq) == 0 || ref_palm.count(seq) == 0 || rep_palm.count(seq) == 0) {
+      continue;
+    }
+    joint_state_t rj = rj0;
+    joint_state_t lj = ref_joint.at(seq);
+    EXPECT_EQ(rj.sample_flags & kSampleReplay, kSampleReplay) << "seq " << seq;
+    if (!ref_is_replay) rj.sample_flags &= ~kSampleReplay;
+    for (std::size_t j = 0; j < 6; ++j) {
+      if (fresh[j] < kWindow) rj.velocity[j] = lj.velocity[j];
+    }
+    if (bytes_of(rj) != bytes_of(lj)) {
+      std::ostringstream d;
+      d << " sample_flags " << lj.sample_flags << "/" << rj.sample_flags;
+      for (std::size_t j = 0; j < 6; ++j) {
+        d << "; j" << j << " homed " << int(lj.homed[j]) << "/" << int(rj.homed[j]) << " count "
+          << lj.raw_count[j] << "/" << rj.raw_count[j] << " pos " << lj.position[j] << "/"
+          << rj.position[j] << " flags " << lj.flags[j] << "/" << rj.flags[j] << " vel "
+          << lj.velocity[j] << "/" << rj.velocity[j] << " (fresh " << fresh[j] << ")";
+      }
+      ADD_FAILURE() << replay << ": joint_state_t differs at seq " << seq << " (excerpt from "
+                    << first_seq << "):" << d.str();
+      return {compared, valid};
+    }
+    const palm_pose_t& lp = ref_palm.at(seq);
+    const palm_pose_t& rp = rep_palm.at(seq);
+    if (bytes_of(rp) != bytes_of(lp)) {
+      ADD_FAILURE() << replay << ": palm_pose_t differs at seq " << seq << ": valid "
+                    << int(lp.valid) << "/" << int(rp.valid) << " reason " << lp.invalid_reason
+                    << "/" << rp.invalid_reason << " x " << lp.position[0] << "/" << rp.position[0];
+      return {compared, valid};
+    }
+    ++compared;
+    valid += lp.valid ? 1 : 0;
+  }
+  return {compared, valid};
+}
+
+// Three excerpts from the middle of the live recording: while the sim homes
+// its joints one by one, and after, when every joint is homed.
+constexpr std::array<std::pair<double, double>, 3> kExcerpts = {
+    {{4.1, 6.3}, {8.35, 10.9}, {11.6, 13.7}}};
+
+TEST_F(ReplayLive, ExcerptsFromTheMiddleReplayToTheLiveValues) {
+  const auto live = read_log(g_live->log);
+  const std::string p = g_live->prefix;
+  const auto live_joint = messages_by_seq<joint_state_t>(live, p + "EXO_JOINT_STATE");
+  const auto live_palm = messages_by_seq<palm_pose_t>(live, p + "EXO_PALM_POSE");
+  ASSERT_FALSE(messages_by_seq<homing_t>(live, p + "EXO_HOMING").empty())
+      << "the daemon records no homing_t";
+  std::size_t valid_total = 0;
+  for (std::size_t i = 0; i < kExcerpts.size(); ++i) {
+    const Excerpt x =
+        cut_excerpt(live, p + "EXO_ENCODER_RAW", kExcerpts[i].first, kExcerpts[i].second,
+                    g_live->dir + "/excerpt" + std::to_string(i) + ".lcm");
+    ASSERT_GT(x.raw_count, 1500) << x.path;
+    const std::string out = g_live->dir + "/excerpt" + std::to_string(i) + "-replay.lcm";
+    const RunResult r = exodaq({"replay", x.path, "-c", g_live->config, "-o", out});
+    ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+    EXPECT_NE(r.out.find("homing: continued from the live run's record of seq"), std::string::npos)
+        << r.out;
+    EXPECT_EQ(r.err.find("no homing record"), std::string::npos) << r.err;
+    const auto [compared, valid] =
+        expect_same_cycles(live_joint, live_palm, out, p, x.first_seq, false);
+    EXPECT_GT(compared, static_cast<std::size_t>(x.raw_count) * 99 / 100) << x.path;
+    valid_total += valid;
+    if (i == kExcerpts.size() - 1) {
+      EXPECT_GT(valid, 1000U) << "no valid poses to compare";
+    }
+  }
+  EXPECT_GT(valid_total, 1000U);
+}
+
+TEST_F(ReplayLive, ExcerptsWithANewCalibrationMatchTheWholeRecordingsReplay) {
+  const std::string calibration = g_live->dir + "/new-calibration.yaml";
+  write_text(calibration,
+             "format: exodaq-calibration-1\n"
+             "encoder_offsets_deg: [49.5, -92.2, 84.4, 6.3, -5.5, -3.6]\n"
+             "dh_deviations_mm: {d2: 0.8, d3: -0.5, d5: 0.3, a3: 0.2, a5: -0.4}\n"
+             "marker_offset_mm: [1, -2, 0.5]\n");
+  const std::string whole = g_live->dir + "/whole-newcal.lcm";
+  const RunResult w = exodaq(
+      {"replay", g_live->log, "-c", g_live->config, "--calibration", calibration, "-o", whole});
+  ASSERT_EQ(w.exit_code, 0) << w.out << w.err;
+  const auto ref = read_log(whole);
+  const std::string p = g_live->prefix;
+  const auto ref_joint = messages_by_seq<joint_state_t>(ref, p + "EXO_JOINT_STATE");
+  const auto ref_palm = messages_by_seq<palm_pose_t>(ref, p + "EXO_PALM_POSE");
+  const auto live = read_log(g_live->log);
+  const auto live_palm = messages_by_seq<palm_pose_t>(live, p + "EXO_PALM_POSE");
+  for (std::size_t i = 0; i < kExcerpts.size(); ++i) {
+    const Excerpt x =
+        cut_excerpt(live, p + "EXO_ENCODER_RAW", kExcerpts[i].first, kExcerpts[i].second,
+                    g_live->dir + "/excerpt-newcal" + std::to_string(i) + ".lcm");
+    const std::string out = g_live->dir + "/excerpt-newcal" + std::to_string(i) + "-replay.lcm";
+    const RunResult r =
+        exodaq({"replay", x.path, "-c", g_live->config, "--calibration", calibration, "-o", out});
+    ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+    const auto [compared, valid] =
+        expect_same_cycles(ref_joint, ref_palm, out, p, x.first_seq, true);
+    EXPECT_GT(compared, static_cast<std::size_t>(x.raw_count) * 99 / 100) << x.path;
+    if (i == kExcerpts.size() - 1) {
+      EXPECT_GT(valid, 1000U);
+      // Recomputed, not copied: the palm moved with the new calibration.
+      const auto rep = messages_by_seq<palm_pose_t>(read_log(out), p + "EXO_PALM_POSE");
+      std::size_t moved = 0;
+      for (const auto& [seq, m] : rep) {
+        if (live_palm.count(seq) != 0 && m.valid &&
+            std::abs(m.position[0] - live_palm.at(seq).position[0]) > 1e-4) {
+          ++moved;
+        }
+      }
+      EXPECT_GT(moved, 1000U);
+    }
+  }
+}
+
+TEST_F(ReplayLive, AnExcerptWithoutHomingRecordsSaysSo) {
+  auto live = read_log(g_live->log);
+  const std::string p = g_live->prefix;
+  std::erase_if(live, [&](const LogEvent& e) { return e.channel == p + "EXO_HOMING"; });
+  const Excerpt x =
+      cut_excerpt(live, p + "EXO_ENCODER_RAW", 11.6, 12.6, g_live->dir + "/excerpt-nohoming.lcm");
+  const std::string out = g_live->dir + "/excerpt-nohoming-replay.lcm";
+  const RunResult r = exodaq({"replay", x.path, "-c", g_live->config, "-o", out});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.err.find("holds no homing record (EXO_HOMING)"), std::string::npos) << r.err;
+  const auto rep = messages_by_seq<palm_pose_t>(read_log(out), p + "EXO_PALM_POSE");
+  ASSERT_FALSE(rep.empty());
+  EXPECT_FALSE(rep.begin()->second.valid);
+  EXPECT_NE(rep.begin()->second.invalid_reason & palm_pose_t::INVALID_UNHOMED, 0);
+}
+
 TEST_F(ReplayLive, RawChannelIsReproducedButForReplayMarks) {
   const auto live =
       messages_by_seq<encoder_raw_t>(read_log(g_live->log), g_live->prefix + "EXO_ENCODER_RAW");
@@ -197,11 +379,69 @@ TEST_F(ReplayLive, TwoReplaysAreByteIdenticalWhateverTheSpeed) {
   RunResult r = exodaq({"replay", g_live->log, "--config", g_live->config, "--out", again});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_EQ(read_text(again), read_text(g_live->replay));
-  // Paced at 8x real time: slower, same bytes.
+  // Pacing is for --live only: a file is always written flat out.
   const std::string paced = g_live->dir + "/replay-paced.lcm";
   r = exodaq({"replay", g_live->log, "--config", g_live->config, "--out", paced, "--speed", "8"});
+  EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("--speed 8 goes with --live"), std::string::npos) << r.err;
+  EXPECT_EQ(file_size(paced), -1);
+}
+
+// Issue 16 point 6: `exodaq replay --live` publishes a recording over LCM with
+// the daemon's channels and types; `exodaq echo` (another process) receives
+// the live run's joint states, the replay flag set, values as recorded.
+TEST_F(ReplayLive, LiveReplayIsSeenByEchoWithTheReplayFlag) {
+  const auto live = read_log(g_live->log);
+  const std::string p = g_live->prefix;
+  const Excerpt x =
+      cut_excerpt(live, p + "EXO_ENCODER_RAW", 11.6, 13.1, g_live->dir + "/excerpt-live.lcm");
+  const auto live_joint = messages_by_seq<joint_state_t>(live, p + "EXO_JOINT_STATE");
+  const std::string out_prefix = unique_prefix("replive");
+  const std::string echo_csv = g_live->dir + "/echo-live.csv";
+  Process echo({EXODAQ_TOOL, "echo", "--url", std::string(kUrl) + "&recv_buf_size=4194304",
+                "--prefix", out_prefix, "--channel", "joint_state", "--count", "300", "--csv"},
+               echo_csv, g_live->dir + "/echo-live.err");
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));  // echo subscribes
+  // 1.5 s of recording at 2x; echo needs 300 of its ~1500 joint states.
+  const RunResult r = exodaq({"replay", x.path, "-c", g_live->config, "--live", "--speed", "2",
+                              "--url", kUrl, "--prefix", out_prefix});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
-  EXPECT_EQ(read_text(paced), read_text(g_live->replay));
+  EXPECT_NE(r.out.find("messages published"), std::string::npos) << r.out;
+  const auto code = echo.wait(std::chrono::seconds(30));
+  ASSERT_TRUE(code.has_value()) << "echo got fewer than 300 joint states";
+  ASSERT_EQ(*code, 0) << read_file(g_live->dir + "/echo-live.err");
+
+  std::istringstream csv(read_file(echo_csv));
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  const auto split = [](const std::string& s) {
+    std::vector<std::string> f;
+    std::stringstream ss(s);
+    std::string c;
+    while (std::getline(ss, c, ',')) f.push_back(c);
+    return f;
+  };
+  const auto header = split(line);
+  const auto column = [&](const std::string& name) {
+    const auto it = std::find(header.begin(), header.end(), name);
+    return it == header.end() ? std::size_t{9999} : static_cast<std::size_t>(it - header.begin());
+  };
+  const std::size_t c_seq = column("seq");
+  const std::size_t c_flags = column("sample_flags");
+  ASSERT_LT(c_seq, header.size()) << line;
+  ASSERT_LT(c_flags, header.size()) << line;
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    const auto f = split(line);
+    ASSERT_GT(f.size(), c_flags) << line;
+    const std::int64_t seq = std::stoll(f[c_seq]);
+    const std::int64_t flags = std::stoll(f[c_flags]);
+    EXPECT_EQ(flags & kSampleReplay, kSampleReplay) << line;
+    ASSERT_EQ(live_joint.count(seq), 1U) << "seq " << seq << " not in the recording";
+    EXPECT_EQ(flags & ~std::int64_t{kSampleReplay}, live_joint.at(seq).sample_flags) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 300);
 }
 
 TEST_F(ReplayLive, StatusIsWrittenAndRunIdIsTheRecordings) {

@@ -1,16 +1,18 @@
 // exodaq replay: re-process a recording through the full pipeline (homing,
 // offsets, kinematics, faults) with a configuration's model and calibration,
-// and write the results as an LCM log (docs/replay.md).
-//   exodaq replay IN -c C -o OUT.lcm [--speed 0.5|1|4|max]
+// and write the results as an LCM log, or publish them live over LCM at the
+// recording's pace (docs/replay.md).
+//   exodaq replay IN -c C (-o OUT.lcm | --live [--speed 1|4|0.5] [--url URL])
 //                 [--format auto|lcm|candump] [--calibration FILE]
 //                 [--channel NAME] [--prefix P] [-q] [-v]
-// The output is written as a files::OutputFile (through msg::LogWriter): it
-// appears complete or not at all, and never replaces an input.
+// The output file is written as a files::OutputFile (through msg::LogWriter):
+// it appears complete or not at all, and never replaces an input.
 //
-// Cycles are driven one by one on this thread (Acquisition::run_cycle), each
-// at its recorded instant: at --speed max nothing sleeps, otherwise cycle k
-// starts (recorded_k - recorded_0) / speed after the first. The output does
-// not depend on the speed: same input, config and calibration, same bytes.
+// Cycles are driven one by one on this thread (Acquisition::run_cycle). Into
+// a file they run flat out (the output does not depend on pacing: same input,
+// config and calibration, same bytes); --live starts cycle k at
+// (recorded_k - recorded_0) / speed after the first and publishes on LCM
+// through the daemon's own sink, with the daemon's channels and types.
 #include <signal.h>
 #include <time.h>
 #include <unistd.h>
@@ -160,7 +162,9 @@ struct ReplayOptions {
   std::string input;
   std::string config;
   std::string out;
-  std::string speed = "max";
+  bool live = false;
+  std::string url;
+  std::string speed = "1";
   std::string format = "auto";
   std::string calibration;
   std::string channel;
@@ -253,7 +257,7 @@ struct ReplayRun {
 // acquisition (its final status) and drains what it published.
 // A failed output write (a full disk) ends it early: the output is lost anyway.
 ReplayRun drive_cycles(core::Acquisition& acq, const drivers::ReplaySource& replay, double speed,
-                       bool quiet, const LcmLogSink& sink) {
+                       bool quiet, const LcmLogSink* sink) {
   struct sigaction sa {};
   sa.sa_handler = on_interrupt;
   sigaction(SIGINT, &sa, nullptr);
@@ -267,7 +271,7 @@ ReplayRun drive_cycles(core::Acquisition& acq, const drivers::ReplaySource& repl
   std::int64_t first_recorded = -1;
   const std::int64_t run_start = mono_now_ns();
   const std::int64_t cpu_start = thread_cpu_now();
-  while (!g_interrupted.load(std::memory_order_relaxed) && !sink.failed()) {
+  while (!g_interrupted.load(std::memory_order_relaxed) && (sink == nullptr || !sink->failed())) {
     const std::int64_t next = replay.next_sample_mono_ns();
     const std::int64_t t = next >= 0 ? next : last_t;
     if (speed > 0.0 && next >= 0) {
@@ -300,7 +304,8 @@ ReplayRun drive_cycles(core::Acquisition& acq, const drivers::ReplaySource& repl
 
 void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
                   const drivers::ReplaySource& replay, const std::string& prefix,
-                  const LcmLogSink& sink, const ReplayRun& run, double load_s) {
+                  const LcmLogSink* sink, core::Acquisition& acq, const ReplayRun& run,
+                  double load_s) {
   const drivers::ReplayLoadSummary& summary = replay.summary();
   const auto ll = [](std::int64_t v) { return static_cast<long long>(v); };
   const char* fmt = summary.format == drivers::ReplayFormat::kLcm ? "lcm" : "candump";
@@ -308,8 +313,9 @@ void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
   if (summary.format == drivers::ReplayFormat::kLcm) {
     std::printf(", channel %s", summary.channel.c_str());
   }
+  const std::string target = sink != nullptr ? o.out : "LCM " + cfg.lcm.url;
   std::printf(", run %s) -> %s (prefix '%s')\n", msg::run_id_text(summary.run_id).c_str(),
-              o.out.c_str(), prefix.c_str());
+              target.c_str(), prefix.c_str());
   std::printf("  config %s, calibration %s\n", o.config.c_str(), cfg.calibration_path.c_str());
   // Cycles per second of wall time, and per second of this thread's CPU
   // time (the figure that does not depend on what else the machine runs).
@@ -323,17 +329,26 @@ void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
                 cpu_rate);
   }
   std::printf(" (loading %.3f s)\n", load_s);
-  std::printf("  %lld messages written; palm pose valid in %lld of %lld cycles (%.1f%%)\n",
-              ll(sink.written()), ll(sink.valid_palm()), ll(sink.palm_messages()),
-              sink.palm_messages() > 0 ? 100.0 * static_cast<double>(sink.valid_palm()) /
-                                             static_cast<double>(sink.palm_messages())
-                                       : 0.0);
+  if (sink == nullptr) {
+    std::printf("  %lld messages published, %lld not (ring full or LCM refused)\n",
+                ll(acq.publisher().published()), ll(acq.publisher().failures()));
+  } else {
+    std::printf("  %lld messages written; palm pose valid in %lld of %lld cycles (%.1f%%)\n",
+                ll(sink->written()), ll(sink->valid_palm()), ll(sink->palm_messages()),
+                sink->palm_messages() > 0 ? 100.0 * static_cast<double>(sink->valid_palm()) /
+                                                static_cast<double>(sink->palm_messages())
+                                          : 0.0);
+  }
   if (summary.format == drivers::ReplayFormat::kLcm) {
     std::printf(
         "  input: %lld events, %lld samples (%lld missing), %lld start-up messages skipped, "
         "%lld messages of other runs skipped\n",
         ll(summary.events), ll(summary.samples), ll(summary.missing), ll(summary.skipped_warmup),
         ll(summary.skipped_other_runs));
+    if (summary.resumed_at_seq >= 0) {
+      std::printf("  homing: continued from the live run's record of seq %lld (%lld records)\n",
+                  ll(summary.resumed_at_seq), ll(summary.homing_records));
+    }
   } else {
     const drivers::SourceStats st = replay.stats();
     std::printf(
@@ -349,6 +364,15 @@ void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
 void report_issues(const drivers::ReplaySource& replay, const std::string& input) {
   const drivers::ReplayLoadSummary& summary = replay.summary();
   const auto ll = [](std::int64_t v) { return static_cast<long long>(v); };
+  if (summary.format == drivers::ReplayFormat::kLcm && summary.resumed_at_seq < 0 &&
+      summary.first_seq > 0) {
+    std::fprintf(stderr,
+                 "exodaq replay: warning: %s starts at seq %lld of its run and holds no homing "
+                 "record (EXO_HOMING): the joints start unhomed and home only where they cross "
+                 "an index inside it; until then angles count from the first sample and palm "
+                 "poses are invalid (INVALID_UNHOMED)\n",
+                 input.c_str(), ll(summary.first_seq));
+  }
   const auto& issues = replay.issues();
   if (!issues.empty()) {
     const std::int64_t total = summary.format == drivers::ReplayFormat::kCandump
@@ -366,23 +390,37 @@ void report_issues(const drivers::ReplaySource& replay, const std::string& input
   }
 }
 
-int run_replay(const ReplayOptions& o) {
+int run_replay(const ReplayOptions& o, bool speed_given) {
+  if (o.live == !o.out.empty()) {
+    print_error(o.live ? "--live publishes on LCM; it takes no --out"
+                       : "give --out FILE.lcm (write a log) or --live (publish on LCM)");
+    return kExitUsage;
+  }
+  if (!o.live && ((speed_given && o.speed != "max") || !o.url.empty())) {
+    print_error(std::string(o.url.empty() ? "--speed " + o.speed : "--url") +
+                " goes with --live (a file is always written flat out: --speed max)");
+    return kExitUsage;
+  }
   double speed = 0.0;
-  if (o.speed != "max") {
+  if (o.live && o.speed != "max") {
     char* end = nullptr;
     speed = std::strtod(o.speed.c_str(), &end);
     if (end == o.speed.c_str() || *end != '\0' || !(speed > 0.0) || !std::isfinite(speed)) {
-      print_error("--speed must be a positive number or 'max', not '" + o.speed + "'");
+      print_error("--speed must be a positive number (x real time) or 'max', not '" + o.speed +
+                  "'");
       return kExitUsage;
     }
   }
   const std::vector<std::string> inputs{o.input, o.config, o.calibration};
-  files::OutputOptions oo;
-  oo.inputs = inputs;
-  files::check_output(o.out, oo);
+  if (!o.live) {
+    files::OutputOptions oo;
+    oo.inputs = inputs;
+    files::check_output(o.out, oo);
+  }
   const std::string format = check_recording(o.input, o.format);
 
   config::ServiceConfig cfg = config::load_service_config(o.config);
+  if (!o.url.empty()) cfg.lcm.url = o.url;
   if (!o.calibration.empty()) {
     cfg.calibration = config::load_calibration_file(o.calibration);
     cfg.calibration_path = o.calibration;
@@ -411,9 +449,11 @@ int run_replay(const ReplayOptions& o) {
     prefix = summary.prefix;  // the recording's channel names
   }
 
-  // The daemon's wiring, with the recording as source, a log file as sink,
-  // the recording's run_id and no real-time scheduling.
-  auto sink_owner = std::make_unique<LcmLogSink>(o.out, inputs);
+  // The daemon's wiring, with the recording as source, a log file as sink
+  // (--live: the daemon's LCM sink on lcm.url), the recording's run_id and
+  // no real-time scheduling.
+  std::unique_ptr<LcmLogSink> sink_owner;
+  if (!o.live) sink_owner = std::make_unique<LcmLogSink>(o.out, inputs);
   LcmLogSink* sink = sink_owner.get();
   core::AcquisitionOptions wiring;
   wiring.source = std::move(source);
@@ -423,16 +463,16 @@ int run_replay(const ReplayOptions& o) {
   wiring.realtime = false;
   const auto acq = core::build_acquisition(cfg, std::move(wiring));
   acq->prepare_for_manual_cycles();
-  sink->arm();
+  if (sink != nullptr) sink->arm();
 
   const bool quiet = common_options().quiet;
-  const ReplayRun run = drive_cycles(*acq, *replay, speed, quiet, *sink);
-  sink->finish();  // throws with the reason when a write failed
-  if (!quiet) print_report(o, cfg, *replay, prefix, *sink, run, load_s);
+  const ReplayRun run = drive_cycles(*acq, *replay, speed, quiet, sink);
+  if (sink != nullptr) sink->finish();  // throws with the reason when a write failed
+  if (!quiet) print_report(o, cfg, *replay, prefix, sink, *acq, run, load_s);
   report_issues(*replay, o.input);
   if (g_interrupted.load()) {
-    print_error("interrupted after " + std::to_string(run.cycles) + " cycles; " + o.out +
-                " holds them");
+    print_error("interrupted after " + std::to_string(run.cycles) + " cycles" +
+                (sink != nullptr ? "; " + o.out + " holds them" : std::string()));
     return kExitFailure;
   }
   return kExitOk;
@@ -443,9 +483,15 @@ std::function<int()> setup_replay(CLI::App& sub) {
   sub.add_option("input", o->input, "recording: lcm-logger log or candump -l file")->required();
   sub.add_option("-c,--config", o->config, "service configuration (model, calibration, encoders)")
       ->required();
-  sub.add_option("-o,--out", o->out, "LCM log to write (all four channels)")->required();
-  sub.add_option("--speed", o->speed,
-                 "x real time (0.5, 1, 4, ...) or 'max' (no sleeping; default)");
+  sub.add_option("-o,--out", o->out, "LCM log to write (every channel the daemon publishes)");
+  sub.add_flag("--live", o->live,
+               "publish on LCM (the config's lcm.url) at the recording's pace instead of "
+               "writing a file");
+  auto* speed =
+      sub.add_option("--speed", o->speed,
+                     "with --live: x real time (1 default, 4, 0.5, ...) or 'max'; files are "
+                     "always written flat out");
+  sub.add_option("--url", o->url, "with --live: LCM URL (default: the config's lcm.url)");
   sub.add_option("--format", o->format, "input format")
       ->check(CLI::IsMember({"auto", "lcm", "candump"}));
   sub.add_option("--calibration", o->calibration,
@@ -457,9 +503,9 @@ std::function<int()> setup_replay(CLI::App& sub) {
       sub.add_option("--prefix", o->prefix,
                      "channel prefix of the output (default: the recording's for LCM input, the "
                      "config's lcm.prefix for candump)");
-  return [o, prefix] {
+  return [o, prefix, speed] {
     o->prefix_given = prefix->count() > 0;
-    return run_replay(*o);
+    return run_replay(*o, speed->count() > 0);
   };
 }
 
@@ -468,5 +514,5 @@ std::function<int()> setup_replay(CLI::App& sub) {
 
 EXODAQ_REGISTER_COMMAND(replay, "replay",
                         "re-process a recording (lcm-logger or candump -l) through the full "
-                        "pipeline and write an LCM log of the results",
+                        "pipeline; write an LCM log of the results or publish them live",
                         exodaq::tools::setup_replay);

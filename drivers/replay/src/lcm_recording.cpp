@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/homing_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/lcm_log.hpp"
@@ -78,6 +79,9 @@ class LcmLoader {
   void add_loop_info(EncoderSample& s);
   void add_partial_channels(EncoderSample& s, bool have_info, const LoopInfo& info) const;
   void count(const EncoderSample& s);
+  void on_homing(const msg::LogEvent& ev);
+  void follow_counts(const EncoderSample& s);
+  void take_resume();
 
   static constexpr std::size_t kRing = 256;
   const ReplaySettings& settings_;
@@ -88,7 +92,16 @@ class LcmLoader {
   bool stopped_ = false;  // the sink wants no more
   std::string raw_channel_;
   std::string joint_channel_;
+  std::string homing_channel_;
   std::array<LoopInfo, kRing> recent_{};
+  // First pass: the latest homing_t not yet matched with its raw sample, and
+  // each channel's count unwrapped from the first sample (its travel).
+  homing_t homing_;
+  homing_t pending_;
+  bool have_pending_ = false;
+  bool have_counts_ = false;
+  std::array<std::int64_t, kChannelCount> travel_{};
+  std::array<std::uint16_t, kChannelCount> last16_{};
   encoder_raw_t raw_;
   joint_state_t joint_;
   bool have_run_ = false;
@@ -117,6 +130,9 @@ void LcmLoader::choose_channels() {
   const std::string joint = msg::channel_name(summary.prefix, msg::Kind::kJointState);
   if (standard_name && channels.count(joint) != 0) joint_channel_ = joint;
   out_.joint_channel = joint_channel_;
+  const std::string homing = msg::channel_name(summary.prefix, msg::Kind::kHoming);
+  if (standard_name && channels.count(homing) != 0) homing_channel_ = homing;
+  out_.homing_channel = homing_channel_;
 }
 
 void LcmLoader::load() {
@@ -131,6 +147,8 @@ void LcmLoader::load() {
       if (counted_ != nullptr) on_joint_state(ev);  // counting needs no loop bits
     } else if (ev.channel == raw_channel_) {
       on_raw(ev);
+    } else if (counted_ == nullptr && !homing_channel_.empty() && ev.channel == homing_channel_) {
+      on_homing(ev);
     }
   }
   for (const msg::LogDamage& d : log.damage()) {
@@ -186,6 +204,10 @@ void LcmLoader::on_raw(const msg::LogEvent& ev) {
   e.sample.flags |= sample_flag::kReplay;
   add_loop_info(e.sample);
   count(e.sample);
+  if (counted_ == nullptr) {
+    if (out_.summary.first_seq < 0) out_.summary.first_seq = raw_.seq;
+    follow_counts(e.sample);
+  }
   previous_ = e.sample;
   have_previous_ = true;
   previous_seq_ = raw_.seq;
@@ -250,6 +272,63 @@ void LcmLoader::add_partial_channels(EncoderSample& s, bool have_info, const Loo
     }
   }
   s.channel_fresh = (moved & 0x07U) != 0 || (moved & 0x38U) == 0 ? 0x07U : 0x38U;
+}
+
+// First pass: the homing records of the run. The first one whose raw sample
+// is in the log too says where the live joints stood (take_resume).
+void LcmLoader::on_homing(const msg::LogEvent& ev) {
+  if (!msg::decode_into(homing_, ev.data, ev.size)) {
+    out_.note(ev.number, "event on " + homing_channel_ + " does not decode as exodaq.homing_t");
+    return;
+  }
+  if (msg::is_startup_message({homing_.utime, homing_.mono_ns, homing_.seq, homing_.run_id}))
+    return;
+  if (have_run_ && homing_.run_id != out_.summary.run_id) return;
+  if (have_run_) ++out_.summary.homing_records;
+  if (out_.summary.resumed_at_seq >= 0) return;
+  pending_ = homing_;
+  have_pending_ = true;
+  if (have_run_ && previous_seq_ == pending_.seq) take_resume();
+}
+
+// First pass: each channel's count unwrapped from the first sample (a held
+// count repeats, so every sample may be unwrapped), then a homing record of
+// this very cycle, logged before it, is taken.
+void LcmLoader::follow_counts(const EncoderSample& s) {
+  for (std::size_t c = 0; c < kChannelCount; ++c) {
+    if (have_counts_) {
+      travel_[c] +=
+          static_cast<std::int16_t>(static_cast<std::uint16_t>(s.count16[c] - last16_[c]));
+    }
+    last16_[c] = s.count16[c];
+  }
+  have_counts_ = true;
+  if (!have_pending_ || out_.summary.resumed_at_seq >= 0) return;
+  if (pending_.run_id != out_.summary.run_id || pending_.seq < raw_.seq) {
+    have_pending_ = false;  // its cycle is not in the log: wait for the next record
+  } else if (pending_.seq == raw_.seq) {
+    take_resume();
+  }
+}
+
+// The live count at the first sample is the record's count less the travel
+// since; a joint whose reference changed in the record's own cycle started
+// that cycle unhomed (the replay homes it on the recorded index itself).
+void LcmLoader::take_resume() {
+  have_pending_ = false;
+  if (out_.summary.homing_records == 0) ++out_.summary.homing_records;
+  out_.summary.resumed_at_seq = pending_.seq;
+  for (std::size_t j = 0; j < context_.joints.size(); ++j) {
+    const auto ch = static_cast<std::size_t>(context_.joints[j].channel) % kChannelCount;
+    JointResume& r = out_.resume[j];
+    r.counted = pending_.counted[j] != 0;
+    r.count = pending_.count[j] - travel_[ch];
+    r.powerup_count = pending_.powerup_count[j];
+    const bool changed = (pending_.changed & (1 << j)) != 0;
+    r.homing = changed ? std::int8_t{0} : pending_.homing[j];
+    r.index_count = pending_.index_count[j];
+    r.index_turns = pending_.index_turns[j];
+  }
 }
 
 void LcmLoader::count(const EncoderSample& s) {

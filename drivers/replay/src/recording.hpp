@@ -28,8 +28,10 @@ class EntrySink {
 struct Pass {
   std::vector<ReplayIssue> issues;
   ReplayLoadSummary summary;
-  SourceStats stats;          // at the end of the input
-  std::string joint_channel;  // lcm: the joint_state_t channel beside the raw one ("": none)
+  SourceStats stats;           // at the end of the input
+  std::string joint_channel;   // lcm: the joint_state_t channel beside the raw one ("": none)
+  std::string homing_channel;  // lcm: the homing_t channel beside the raw one ("": none)
+  JointResumeSet resume{};     // lcm: valid when summary.resumed_at_seq >= 0
 
   static constexpr std::size_t kMaxStoredIssues = 1000;
   void note(std::int64_t where, std::string what) {

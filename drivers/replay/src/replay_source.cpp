@@ -235,6 +235,11 @@ std::size_t ReplaySource::batch() const noexcept {
   return settings_.speed > 0.0 ? 1 : state_->ring.capacity() / 2;
 }
 
+const JointResumeSet* ReplaySource::resume_state() const noexcept {
+  if (!state_ || state_->first.summary.resumed_at_seq < 0) return nullptr;
+  return &state_->first.resume;
+}
+
 const ReplayLoadSummary& ReplaySource::summary() const noexcept {
   static const ReplayLoadSummary kNone{};
   return state_ ? state_->first.summary : kNone;

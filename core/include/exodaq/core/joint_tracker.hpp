@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "exodaq/config/service_config.hpp"
+#include "exodaq/drivers/encoder_source.hpp"
 #include "exodaq/wire_constants.hpp"
 
 namespace exodaq::core {
@@ -79,6 +80,23 @@ struct JointReading {
   HomingState homing = HomingState::kUnhomed;
 };
 
+// The tracker's homing reference (published as homing_t, docs/replay.md).
+struct HomingReference {
+  bool counted = false;  // a count has arrived since start
+  std::int64_t count = 0;
+  std::int64_t powerup_count = 0;
+  HomingState homing = HomingState::kUnhomed;
+  std::int64_t index_count = 0;  // unwrapped count at the accepted index
+  std::int64_t index_turns = 0;  // k: the index angle is offset + k 2pi/gear
+  double index_angle_rad = 0.0;  // under the current calibration
+
+  // The same reference (the count and angle aside).
+  bool same_reference(const HomingReference& o) const noexcept {
+    return counted == o.counted && homing == o.homing && index_count == o.index_count &&
+           index_turns == o.index_turns && powerup_count == o.powerup_count;
+  }
+};
+
 // One event a tracker wants logged (off the loop thread).
 enum class JointEvent : std::uint8_t {
   kNone,
@@ -106,6 +124,12 @@ class JointTracker {
   JointEvent update(std::int64_t sample_mono_ns, bool fresh, std::uint16_t count16,
                     bool index_valid, std::uint16_t index_count16, bool board_error) noexcept;
 
+  // Continues a live run from a recording's first sample (replay): the first
+  // count is unwrapped next to r.count, the homing reference is r's. Before
+  // the first update() only.
+  void resume(const drivers::JointResume& r) noexcept;
+  HomingReference homing_reference() const noexcept;
+
   const JointReading& reading() const noexcept { return reading_; }
   const JointCounters& counters() const noexcept { return counters_; }
   const JointTrackerConfig& config() const noexcept { return config_; }
@@ -126,6 +150,8 @@ class JointTracker {
   std::int64_t count_ = 0;
   std::int64_t last_fresh_ns_ = 0;
   std::int64_t powerup_count_ = 0;
+  bool resume_pending_ = false;  // resume(): the first count continues resume_count_
+  std::int64_t resume_count_ = 0;
 
   HomingState homing_ = HomingState::kUnhomed;
   std::int64_t ref_count_ = 0;  // unwrapped count at the reference index

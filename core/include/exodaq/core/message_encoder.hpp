@@ -1,6 +1,7 @@
 #pragma once
 // A cycle's result as LCM messages: palm_pose_t, joint_state_t and (when
-// configured) encoder_raw_t, encoded straight into the publisher's slots.
+// configured) encoder_raw_t with homing_t once a second and on every change
+// of a joint's homing reference, encoded straight into the publisher's slots.
 // Every string is set at construction; encoding allocates nothing.
 #include <array>
 #include <cstdint>
@@ -10,6 +11,7 @@
 #include "exodaq/core/publisher.hpp"
 #include "exodaq/drivers/encoder_sample.hpp"
 #include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/homing_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
 
@@ -33,8 +35,9 @@ void publish_encoded(Publisher& publisher, msg::Kind channel, const Msg& message
 
 class MessageEncoder {
  public:
+  // `period_ns`: the loop period (homing_t goes out once per second of cycles).
   MessageEncoder(const std::array<std::string, kJointCount>& joint_names, std::int64_t run_id,
-                 bool publish_raw);
+                 bool publish_raw, std::int64_t period_ns = 1'000'000);
 
   // Start-up: encodes every message once into scratch memory (lcm-gen's hashes
   // are initialised on first use). Throws if one does not fit a slot.
@@ -45,11 +48,20 @@ class MessageEncoder {
   void publish(const CycleResult& result, const drivers::EncoderSample& sample,
                Publisher& publisher) noexcept;
 
+  // homing_t when a joint's reference changed in this cycle or a second of
+  // cycles has passed (with the raw stream only); before publish(), which wakes
+  // the publisher.
+  void publish_homing(const CycleResult& result, const Pipeline& pipeline,
+                      Publisher& publisher) noexcept;
+
  private:
   bool publish_raw_;
   exodaq::joint_state_t joint_{};
   exodaq::palm_pose_t palm_{};
   exodaq::encoder_raw_t raw_{};
+  exodaq::homing_t homing_{};
+  std::int64_t homing_every_ = 1000;  // cycles
+  std::array<HomingReference, kJointCount> last_reference_{};
 };
 
 }  // namespace exodaq::core

@@ -85,6 +85,10 @@ class Pipeline {
   void process(const drivers::EncoderSample& sample, std::uint32_t extra_sample_flags,
                bool clock_invalid, CycleResult& out) noexcept;
 
+  // Replay of a recording that starts mid-run: each tracker continues the
+  // live run's count and homing (JointTracker::resume).
+  void resume(const drivers::JointResumeSet& joints) noexcept;
+
   const JointTracker& joint(int i) const noexcept { return trackers_[static_cast<std::size_t>(i)]; }
   const PipelineConfig& config() const noexcept { return *config_; }
 

@@ -1,6 +1,7 @@
 #pragma once
 // The seam every encoder backend sits behind (sim, socketcan, replay). The
 // daemon's loop talks to this interface only, so tests inject fakes.
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -31,6 +32,20 @@ enum class ReadStatus : std::uint8_t {
   // found nothing more. `out` is untouched; the loop publishes no cycle.
   kNothingDue,
 };
+
+// Where a live run's joint stood when a recording that starts in the middle
+// of that run begins (the replay backend, from the recorded homing_t): the
+// count the live tracker had unwrapped to, and its homing reference.
+struct JointResume {
+  bool counted = false;            // false: nothing known, the joint starts afresh
+  std::int64_t count = 0;          // the live unwrapped count at the recording's first sample
+  std::int64_t powerup_count = 0;  // the live run's first count (zero of the unhomed angle)
+  std::int8_t homing = 0;          // status_t HOMING_* (0 unhomed, 1 homed, 2 rejected)
+  std::int64_t index_count = 0;    // unwrapped count at the accepted index
+  std::int64_t index_turns = 0;    // which index crossing that was
+};
+// By joint, in the configuration's joint order.
+using JointResumeSet = std::array<JointResume, kChannelCount>;
 
 class EncoderSource {
  public:
@@ -75,6 +90,10 @@ class EncoderSource {
   // CycleTime::catch_up set. A source may report 1 while more wait behind it
   // (a socket it has not drained yet).
   virtual int backlog() const noexcept { return 0; }
+
+  // For replay, after start(): where the recorded run's joints stood at the
+  // first sample (nullptr: start afresh, as live sources always do).
+  virtual const JointResumeSet* resume_state() const noexcept { return nullptr; }
 
   virtual SourceStats stats() const noexcept = 0;
 

@@ -1,5 +1,5 @@
 #pragma once
-// The four exodaq messages and their channels: the one table of channel names,
+// The five exodaq messages and their channels: the one table of channel names,
 // type names and fingerprints. A channel is `<prefix><base>`, e.g.
 // "RIG2_" + "EXO_JOINT_STATE" (docs/messages.md).
 #include <array>
@@ -11,10 +11,10 @@
 
 namespace exodaq::msg {
 
-enum class Kind : std::uint8_t { kJointState = 0, kPalmPose, kEncoderRaw, kStatus };
-inline constexpr int kKindCount = 4;
-inline constexpr std::array<Kind, kKindCount> kAllKinds = {Kind::kJointState, Kind::kPalmPose,
-                                                           Kind::kEncoderRaw, Kind::kStatus};
+enum class Kind : std::uint8_t { kJointState = 0, kPalmPose, kEncoderRaw, kStatus, kHoming };
+inline constexpr int kKindCount = 5;
+inline constexpr std::array<Kind, kKindCount> kAllKinds = {
+    Kind::kJointState, Kind::kPalmPose, Kind::kEncoderRaw, Kind::kStatus, Kind::kHoming};
 
 // "EXO_JOINT_STATE" etc., without prefix.
 std::string_view base_channel(Kind k) noexcept;

@@ -1,5 +1,5 @@
 #pragma once
-// A decoded exodaq message of any of the four types, decoding by kind, and
+// A decoded exodaq message of any of the five types, decoding by kind, and
 // the header every message carries.
 #include <cstddef>
 #include <cstdint>
@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "exodaq/encoder_raw_t.hpp"
+#include "exodaq/homing_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/palm_pose_t.hpp"
@@ -17,7 +18,7 @@
 
 namespace exodaq::msg {
 
-using Message = std::variant<joint_state_t, palm_pose_t, encoder_raw_t, status_t>;
+using Message = std::variant<joint_state_t, palm_pose_t, encoder_raw_t, status_t, homing_t>;
 
 Kind kind_of(const Message& m) noexcept;
 

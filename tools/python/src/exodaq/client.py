@@ -162,6 +162,9 @@ def _summary(channel, msg):
             " ".join("%8.2f" % (p * 1e3) for p in msg.position), msg.shoulder_manipulability)
     if t == "encoder_raw_t":
         return "%s seq %d present %d count16 %s" % (channel, msg.seq, msg.present, msg.count16)
+    if t == "homing_t":
+        return "%s seq %d changed %d homing %s index_count %s" % (
+            channel, msg.seq, msg.changed, list(msg.homing), list(msg.index_count))
     return "%s seq %d rig %r %s %r" % (channel, msg.seq, msg.rig, names.state_name(msg.state),
                                        msg.message)
 

@@ -1,4 +1,4 @@
-"""The four exodaq messages, their channels, and names for their flag bits and codes.
+"""The five exodaq messages, their channels, and names for their flag bits and codes.
 
 The same table and the same names as the C++ messages library
 (messages/src/channels.cpp, flag_names.cpp); tests/python checks both agree
@@ -12,6 +12,7 @@ into the generated classes: joint_state_t.JOINT_STALE is named "STALE".
 import collections
 
 from .encoder_raw_t import encoder_raw_t
+from .homing_t import homing_t
 from .joint_state_t import joint_state_t
 from .palm_pose_t import palm_pose_t
 from .status_t import status_t
@@ -26,6 +27,7 @@ KINDS = (
     Kind("palm_pose", "EXO_PALM_POSE", palm_pose_t, True),
     Kind("encoder_raw", "EXO_ENCODER_RAW", encoder_raw_t, True),
     Kind("status", "EXO_STATUS", status_t, False),
+    Kind("homing", "EXO_HOMING", homing_t, False),
 )
 BASE_CHANNELS = tuple(k.base_channel for k in KINDS)
 

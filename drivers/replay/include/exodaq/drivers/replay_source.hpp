@@ -72,6 +72,11 @@ struct ReplayLoadSummary {
   std::int64_t bad_lines = 0;           // candump: malformed lines
   std::int64_t frames = 0;              // candump: frames fed to the decoder
   double duration_s = 0.0;              // last minus first sample instant
+  // lcm: homing_t records of the replayed run; the first one taken to
+  // continue the live homing (its seq; -1: none, the joints start afresh).
+  std::int64_t homing_records = 0;
+  std::int64_t resumed_at_seq = -1;
+  std::int64_t first_seq = -1;  // lcm: the recorded seq of the first sample
 };
 
 class ReplaySource final : public EncoderSource {
@@ -98,6 +103,7 @@ class ReplaySource final : public EncoderSource {
   std::int64_t next_sample_mono_ns() const noexcept override;
   std::int64_t recorded_seq() const noexcept override { return last_seq_; }
   SourceStats stats() const noexcept override { return stats_; }
+  const JointResumeSet* resume_state() const noexcept override;
 
   // After start().
   const ReplayLoadSummary& summary() const noexcept;
