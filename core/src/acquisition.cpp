@@ -69,18 +69,21 @@ std::string setup_realtime(const AcquisitionConfig& c) {
 Acquisition::Acquisition(AcquisitionConfig config, std::unique_ptr<PipelineConfig> pipeline_config,
                          std::unique_ptr<drivers::EncoderSource> source,
                          std::unique_ptr<MessageSink> sink, const std::string& channel_prefix,
-                         std::unique_ptr<ClockSource> clock)
+                         std::unique_ptr<ClockSource> clock, std::unique_ptr<LoopClock> loop_clock)
     : config_(std::move(config)),
       configs_(std::move(pipeline_config)),
       source_(std::move(source)),
       clock_(clock ? std::move(clock) : make_system_clock()),
+      loop_clock_(loop_clock ? std::move(loop_clock) : make_monotonic_loop_clock()),
       publisher_(std::move(sink), channel_prefix),
       pipeline_(configs_.active()),
-      time_base_(make_time_base(*source_, clock_shared_, config_.clock, config_.period_ns)),
+      time_base_(
+          make_time_base(*source_, clock_shared_, config_.clock, config_.period_ns, *loop_clock_)),
       run_id_(config_.run_id != 0 ? config_.run_id : new_run_id()),
       encoder_(config_.joint_names, run_id_, config_.publish_raw, config_.period_ns),
       status_(status_settings(config_, *source_, *time_base_, run_id_), pipeline_, clock_shared_) {
   if (config_.status_every_cycles < 1) config_.status_every_cycles = 1;
+  if (config_.max_samples_per_wake < 1) config_.max_samples_per_wake = 1;
 }
 
 Acquisition::~Acquisition() {
@@ -116,7 +119,7 @@ void Acquisition::stop() {
   if (started_) {
     // The final status: subscribers see the service stop on purpose.
     state_.store(ServiceState::kStopping);
-    finish_window(mono_now_ns());
+    finish_window(time_base_->now());
     publisher_.stop();
     if (clock_monitor_) clock_monitor_->stop();
     source_->stop();
@@ -136,6 +139,8 @@ Acquisition::SourceCounters Acquisition::source_counters() const noexcept {
   c.missing_samples = published_missing_.load(std::memory_order_relaxed);
   c.seq_gaps = published_seq_gaps_.load(std::memory_order_relaxed);
   c.bus_errors = published_bus_errors_.load(std::memory_order_relaxed);
+  c.superseded_samples = published_superseded_.load(std::memory_order_relaxed);
+  c.late_syncs = published_late_syncs_.load(std::memory_order_relaxed);
   c.bus_state = published_bus_state_.load(std::memory_order_relaxed);
   return c;
 }
@@ -157,15 +162,17 @@ void Acquisition::thread_main() noexcept {
   }
   pthread_setname_np(pthread_self(), "exodaq-loop");
   const std::int64_t period = config_.period_ns;
-  std::int64_t deadline = mono_now_ns() + period;
+  std::int64_t deadline = time_base_->now() + period;
   while (!stop_requested_.load(std::memory_order_relaxed)) {
     deadline = time_base_->wait(deadline);
-    const std::int64_t wake = mono_now_ns();
-    if (!run_cycle(deadline, wake)) break;
-    const std::int64_t end = mono_now_ns();
+    const std::int64_t wake = time_base_->now();
+    if (!run_wake(deadline, wake, true)) break;
+    const std::int64_t end = time_base_->now();
     deadline += period;
     // Overrun: skip to the next deadline still ahead instead of bursting
-    // through the missed ones; their seq numbers are counted, not published.
+    // through the missed ones. Sync master: their seq numbers are counted, not
+    // published (no sample was taken). Free-running board: the samples taken
+    // meanwhile wait in the source and come with the next wakes' backlog.
     if (const std::int64_t missed = time_base_->overrun(end, deadline); missed > 0) {
       deadline += missed * period;
       count_overrun(missed, end - wake);
@@ -175,9 +182,8 @@ void Acquisition::thread_main() noexcept {
 }
 
 void Acquisition::count_overrun(std::int64_t missed, std::int64_t work_ns) noexcept {
-  seq_ += missed;
+  if (!source_->free_running()) seq_ += missed;
   overruns_.fetch_add(missed, std::memory_order_relaxed);
-  previous_overran_ = true;
   LogEvent e;
   e.kind = LogEvent::Kind::kOverrun;
   e.seq = seq_;
@@ -187,8 +193,37 @@ void Acquisition::count_overrun(std::int64_t missed, std::int64_t work_ns) noexc
 }
 
 bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noexcept {
+  return run_wake(deadline_ns, wake_ns, false);
+}
+
+bool Acquisition::run_wake(std::int64_t deadline_ns, std::int64_t wake_ns, bool clocked) noexcept {
   apply_staged_reload();
-  if (!read_sample(deadline_ns, wake_ns)) return false;
+  drivers::CycleTime t;
+  t.deadline_mono_ns = deadline_ns;
+  t.now_mono_ns = wake_ns;
+  t.period_ns = config_.period_ns;
+  for (int n = 1;; ++n) {
+    const std::int64_t work_start = mono_now_ns();
+    t.cycle = seq_;
+    const drivers::ReadStatus r = read_sample(t);
+    if (r == drivers::ReadStatus::kEndOfStream) return false;
+    if (r == drivers::ReadStatus::kNothingDue) return true;
+    const std::int64_t now = clocked ? time_base_->now() : wake_ns;
+    publish_sample(deadline_ns, wake_ns, now, !t.catch_up, work_start);
+    if (source_->backlog() <= 0) return true;
+    if (n >= config_.max_samples_per_wake) {
+      // Bounded: the rest stays queued in the source for the next wakes.
+      backlog_wakes_.fetch_add(1, std::memory_order_relaxed);
+      return true;
+    }
+    t.catch_up = true;
+    t.now_mono_ns = now;
+  }
+}
+
+void Acquisition::publish_sample(std::int64_t deadline_ns, std::int64_t wake_ns,
+                                 std::int64_t now_ns, bool first_of_wake,
+                                 std::int64_t work_start_ns) noexcept {
   const SampleTime time = time_base_->stamp(sample_);
   if (time.new_step) {
     LogEvent e;
@@ -199,9 +234,11 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
     events_.push(e);
   }
   std::uint32_t flags = time.flags;
-  if (previous_overran_) {
+  // LATE: published more than one period after its sample instant (a
+  // recording's samples are published when replayed, never late).
+  if (!time_base_->recorded() && now_ns - sample_.mono_ns > config_.period_ns) {
     flags |= drivers::sample_flag::kLate;
-    previous_overran_ = false;
+    late_.fetch_add(1, std::memory_order_relaxed);
   }
   if (foreign_run_id_.load(std::memory_order_relaxed) != 0)
     flags |= drivers::sample_flag::kForeignRun;
@@ -215,15 +252,20 @@ bool Acquisition::run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noex
   encoder_.publish(result_, sample_, publisher_);
   push_joint_events();
 
-  status_.count_cycle(result_, sample_.present, time.clock_hold, deadline_ns, wake_ns);
-  record_lateness(wake_ns - deadline_ns);
+  // The wake's timing counts once; every sample counts as a cycle.
+  status_.count_cycle(result_, sample_.present, time.clock_hold, deadline_ns, wake_ns,
+                      first_of_wake);
+  if (first_of_wake) {
+    record_lateness(wake_ns - deadline_ns);
+  } else {
+    caught_up_.fetch_add(1, std::memory_order_relaxed);
+  }
   ++seq_;
   cycles_.fetch_add(1, std::memory_order_release);  // publishes realtime_report_ (cycles())
-  status_.count_work(mono_now_ns() - wake_ns);
+  status_.count_work(mono_now_ns() - work_start_ns);
   // The window closes on the cycle's own clock (the simulated one when tests
   // drive cycles by hand), so state decisions are reproducible.
-  if (seq_ % config_.status_every_cycles == 0) finish_window(wake_ns);
-  return true;
+  if (seq_ % config_.status_every_cycles == 0) finish_window(now_ns);
 }
 
 void Acquisition::apply_staged_reload() noexcept {
@@ -236,19 +278,16 @@ void Acquisition::apply_staged_reload() noexcept {
   push_event(LogEvent::Kind::kReloadApplied);
 }
 
-// Reads this cycle's sample and settles its seq and, for a missing sample,
-// the instant it was due. False at the end of the stream.
-bool Acquisition::read_sample(std::int64_t deadline_ns, std::int64_t wake_ns) noexcept {
-  drivers::CycleTime t;
-  t.deadline_mono_ns = deadline_ns;
-  t.now_mono_ns = wake_ns;
-  t.period_ns = config_.period_ns;
-  t.cycle = seq_;
-  if (source_->read(t, sample_) == drivers::ReadStatus::kEndOfStream) {
+// Reads the next sample and settles its seq and, for a missing sample, the
+// instant it was due.
+drivers::ReadStatus Acquisition::read_sample(const drivers::CycleTime& t) noexcept {
+  const drivers::ReadStatus r = source_->read(t, sample_);
+  if (r == drivers::ReadStatus::kEndOfStream) {
     push_event(LogEvent::Kind::kEndOfStream);
     finished_.store(true, std::memory_order_release);
-    return false;
+    return r;
   }
+  if (r == drivers::ReadStatus::kNothingDue) return r;
   seq_ = time_base_->seq(seq_);
   if (sample_.present) {
     last_present_mono_ns_ = sample_.mono_ns;
@@ -259,9 +298,9 @@ bool Acquisition::read_sample(std::int64_t deadline_ns, std::int64_t wake_ns) no
     // never has to be pushed later than a real sample's receive time.
     sample_.mono_ns = last_present_mono_ns_ > 0
                           ? last_present_mono_ns_ + (seq_ - last_present_seq_) * config_.period_ns
-                          : deadline_ns;
+                          : t.deadline_mono_ns;
   }
-  return true;
+  return r;
 }
 
 void Acquisition::push_joint_events() noexcept {
@@ -294,6 +333,8 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   published_missing_.store(end.source.missing_samples, std::memory_order_relaxed);
   published_seq_gaps_.store(end.source.seq_gaps, std::memory_order_relaxed);
   published_bus_errors_.store(end.source.bus_errors, std::memory_order_relaxed);
+  published_superseded_.store(end.source.superseded_samples, std::memory_order_relaxed);
+  published_late_syncs_.store(end.source.late_syncs, std::memory_order_relaxed);
   published_bus_state_.store(end.source.bus_state, std::memory_order_relaxed);
   end.now_mono_ns = now_mono;
   end.seq = seq_ - 1;

@@ -102,7 +102,7 @@ std::unique_ptr<Acquisition> build_acquisition(const config::ServiceConfig& c,
   auto sink = o.sink ? std::move(o.sink) : make_lcm_sink(c.lcm.url);
   return std::make_unique<Acquisition>(std::move(a), make_pipeline_config(c), std::move(source),
                                        std::move(sink), o.channel_prefix.value_or(c.lcm.prefix),
-                                       std::move(o.clock));
+                                       std::move(o.clock), std::move(o.loop_clock));
 }
 
 }  // namespace exodaq::core

@@ -59,7 +59,8 @@ void StatusAssembler::warm_up() {
 }
 
 void StatusAssembler::count_cycle(const CycleResult& result, bool present, bool clock_hold,
-                                  std::int64_t deadline_ns, std::int64_t wake_ns) noexcept {
+                                  std::int64_t deadline_ns, std::int64_t wake_ns,
+                                  bool new_wake) noexcept {
   ++facts_.cycles;
   if (present) {
     ++facts_.samples_present;
@@ -72,6 +73,7 @@ void StatusAssembler::count_cycle(const CycleResult& result, bool present, bool 
     facts_.joint_flags_or[static_cast<std::size_t>(i)] |=
         result.joints[static_cast<std::size_t>(i)].flags;
   }
+  if (!new_wake) return;
   if (last_wake_ns_ != 0) period_.add(wake_ns - last_wake_ns_);
   last_wake_ns_ = wake_ns;
   lateness_.add(wake_ns - deadline_ns);

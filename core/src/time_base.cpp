@@ -9,18 +9,26 @@
 namespace exodaq::core {
 
 namespace {
-void sleep_until(std::int64_t deadline_ns) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
-  ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+class MonotonicLoopClock final : public LoopClock {
+ public:
+  std::int64_t now_ns() noexcept override { return mono_now_ns(); }
+  void sleep_until(std::int64_t deadline_ns) noexcept override {
+    timespec ts{};
+    ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
+    ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+    }
   }
-}
+};
 }  // namespace
 
+std::unique_ptr<LoopClock> make_monotonic_loop_clock() {
+  return std::make_unique<MonotonicLoopClock>();
+}
+
 LiveTimeBase::LiveTimeBase(const ClockShared& clock, const ClockPolicy& policy,
-                           std::int64_t period_ns)
-    : clock_(clock), period_ns_(period_ns) {
+                           std::int64_t period_ns, LoopClock& loop_clock)
+    : clock_(clock), period_ns_(period_ns), loop_clock_(loop_clock) {
   set_policy(policy);
 }
 
@@ -30,7 +38,7 @@ void LiveTimeBase::set_policy(const ClockPolicy& policy) noexcept {
 }
 
 std::int64_t LiveTimeBase::wait(std::int64_t deadline_ns) noexcept {
-  sleep_until(deadline_ns);
+  loop_clock_.sleep_until(deadline_ns);
   return deadline_ns;
 }
 
@@ -60,23 +68,23 @@ SampleTime LiveTimeBase::stamp(const drivers::EncoderSample& sample) noexcept {
 }
 
 RecordedTimeBase::RecordedTimeBase(const drivers::EncoderSource& source, double speed,
-                                   const ClockPolicy& policy)
-    : source_(source), speed_(speed), policy_(policy) {}
+                                   const ClockPolicy& policy, LoopClock& loop_clock)
+    : source_(source), speed_(speed), policy_(policy), loop_clock_(loop_clock) {}
 
 std::int64_t RecordedTimeBase::wait(std::int64_t deadline_ns) noexcept {
   const std::int64_t next = source_.next_sample_mono_ns();
   if (next < 0) {
-    sleep_until(deadline_ns);
+    loop_clock_.sleep_until(deadline_ns);
     return deadline_ns;
   }
   if (first_recorded_ns_ < 0) {
     first_recorded_ns_ = next;
-    start_ns_ = mono_now_ns();
+    start_ns_ = loop_clock_.now_ns();
   }
-  if (!(speed_ > 0.0)) return mono_now_ns();
+  if (!(speed_ > 0.0)) return loop_clock_.now_ns();
   const std::int64_t due = start_ns_ + static_cast<std::int64_t>(
                                            static_cast<double>(next - first_recorded_ns_) / speed_);
-  sleep_until(due);
+  loop_clock_.sleep_until(due);
   return due;
 }
 
@@ -99,10 +107,10 @@ SampleTime RecordedTimeBase::stamp(const drivers::EncoderSample& sample) noexcep
 
 std::unique_ptr<TimeBase> make_time_base(const drivers::EncoderSource& source,
                                          const ClockShared& clock, const ClockPolicy& policy,
-                                         std::int64_t period_ns) {
+                                         std::int64_t period_ns, LoopClock& loop_clock) {
   if (const auto speed = source.recording_speed())
-    return std::make_unique<RecordedTimeBase>(source, *speed, policy);
-  return std::make_unique<LiveTimeBase>(clock, policy, period_ns);
+    return std::make_unique<RecordedTimeBase>(source, *speed, policy, loop_clock);
+  return std::make_unique<LiveTimeBase>(clock, policy, period_ns, loop_clock);
 }
 
 }  // namespace exodaq::core

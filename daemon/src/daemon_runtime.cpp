@@ -730,10 +730,13 @@ void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& lo
     spdlog::warn("{} loop events were not logged: the event ring was full", acq.events_dropped());
   }
   if (!options.lateness_log.empty()) write_lateness_log(acq, options.lateness_log);
+  const auto source = acq.source_counters();  // as of the final status window
   spdlog::info(
-      "stopped after {} cycles ({} overruns, {} publish failures, {} messages published){}",
+      "stopped after {} cycles ({} overruns, {} publish failures, {} messages published; {} "
+      "samples late, {} caught up after a late wake, {} superseded, {} late SYNCs){}",
       acq.cycles(), acq.overruns(), acq.publisher().failures() + acq.publisher().ring_drops(),
-      acq.publisher().published(),
+      acq.publisher().published(), acq.late_samples(), acq.caught_up_samples(),
+      source.superseded_samples, source.late_syncs,
       fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", msg::run_id_text(acq.run_id())}}));
   shut_down_logging(logging);
 }

@@ -300,6 +300,7 @@ int BoardDecoder::poll_newest(EncoderSample& out) noexcept {
     out = newer;
     ++superseded;
   }
+  stats_.source.superseded_samples += superseded;
   return superseded;
 }
 

@@ -1,5 +1,7 @@
 #include "exodaq/drivers/sim_backend.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <sstream>
 
 #include "exodaq/drivers/sim_source.hpp"
@@ -34,6 +36,19 @@ std::shared_ptr<const BackendSettings> parse_sim(config::MapReader* s, config::M
   out->motion = s->choice_or("motion", {"curves", "task"}, out->task ? "task" : "curves");
   if (out->motion == "task" && !out->task) {
     s->fail_key("motion", "motion: task needs a task file (source.sim.task)");
+  }
+  if (auto clock = s->optional_map("board_clock")) {
+    out->free_running = clock->boolean_or("free_running", false);
+    out->drift_ppm = clock->number_or("drift_ppm", 0.0);
+    if (out->drift_ppm < -1000.0 || out->drift_ppm > 1000.0)
+      clock->fail_key("drift_ppm", "source.sim.board_clock.drift_ppm must be within ±1000");
+    out->phase = clock->number_or("phase", 0.0);
+    if (out->phase < 0.0 || out->phase >= 1.0)
+      clock->fail_key("phase", "source.sim.board_clock.phase (in periods) must be in [0, 1)");
+    if (!out->free_running && (clock->has("drift_ppm") || clock->has("phase")))
+      clock->fail_key(clock->has("drift_ppm") ? "drift_ppm" : "phase",
+                      "a board clock that is not free_running has no drift or phase");
+    clock->finish();
   }
   if (auto faults = s->optional_child("faults")) {
     if (!faults->IsSequence()) s->fail(*faults, "source.sim.faults must be a list");
@@ -114,6 +129,10 @@ std::string SimSourceSettings::describe() const {
   s << "{seed: " << seed << ", loss_percent: " << loss_percent << ", jitter_us: " << jitter_us
     << ", powerup_count: " << powerup_count << ", motion: " << motion;
   if (!task_path.empty()) s << ", task: " << task_path;
+  if (free_running) {
+    s << ", board_clock: {free_running: true, drift_ppm: " << drift_ppm << ", phase: " << phase
+      << "}";
+  }
   if (!faults.empty()) {
     s << ", faults: [";
     for (std::size_t i = 0; i < faults.size(); ++i) {
@@ -147,6 +166,10 @@ sim::SimOptions sim_options_from(const SimSourceSettings& settings, const Source
   o.jitter_ns = static_cast<std::int64_t>(settings.jitter_us * 1000.0);
   o.loss_percent = settings.loss_percent;
   o.faults = settings.faults;
+  o.board_clock.free_running = settings.free_running;
+  o.board_clock.drift_ppm = settings.drift_ppm;
+  o.board_clock.phase_ns = std::min(
+      ctx.period_ns - 1, static_cast<std::int64_t>(std::llround(settings.phase * ctx.period_ns)));
   // The simulated rig is the configured one: its encoders sit on the
   // configured channels with the configured direction and gearing, and each
   // index at the calibration's delta_theta0, so a homed joint reads the truth.

@@ -386,6 +386,10 @@ const SimOptions& checked(const SimOptions& o) {
   if (!(o.loss_percent >= 0 && o.loss_percent <= 100)) bad("loss_percent outside 0..100");
   if (!(o.partial_percent >= 0 && o.partial_percent <= 100)) bad("partial_percent outside 0..100");
   if (o.jitter_ns < 0) bad("jitter must not be negative");
+  if (!(std::abs(o.board_clock.drift_ppm) <= 1000.0))
+    bad("board clock drift must be within ±1000 ppm");
+  if (o.board_clock.phase_ns < 0 || o.board_clock.phase_ns >= o.period_ns)
+    bad("board clock phase must be in [0, period)");
   if (const char* why = can::validate(o.board.ids)) bad(why);
   for (const SimFault& f : o.faults) check_fault(f, o.period_ns);
   return o;
@@ -466,6 +470,10 @@ double SimRig::fault_excursion_rad(int j, double t_s) const noexcept {
 
 std::int64_t SimRig::sample_offset_ns(std::int64_t k) const noexcept {
   std::int64_t t = k * options_.period_ns;
+  if (const SimBoardClock& b = options_.board_clock; b.free_running) {
+    t += b.phase_ns + std::llround(static_cast<double>(k) *
+                                   static_cast<double>(options_.period_ns) * b.drift_ppm * 1e-6);
+  }
   if (options_.jitter_ns > 0) {
     const double r = unit_random(options_.seed, 1, static_cast<std::uint64_t>(k));
     t += static_cast<std::int64_t>(

@@ -2,6 +2,7 @@
 
 #include <time.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <stdexcept>
@@ -45,6 +46,8 @@ void SimSource::start() {
   pending_n_ = 0;
   cycle_ = 0;
   last_read_s_ = -1.0;
+  last_now_ns_ = 0;
+  last_delivered_mono_ns_ = 0;
   const std::int64_t mono = now_ns(CLOCK_MONOTONIC);
   start_mono_ns_ = options_.start_mono_ns != 0 ? options_.start_mono_ns : mono;
   wall_offset_ns_ =
@@ -77,7 +80,21 @@ void SimSource::feed_arrived(std::int64_t until_mono_ns) noexcept {
   pending_n_ -= fed;
 }
 
+bool SimSource::feed_one(std::int64_t until_mono_ns) noexcept {
+  if (pending_n_ == 0 || pending_[0].mono_ns > until_mono_ns) return false;
+  decoder_.on_frame(pending_[0]);
+  for (int i = 1; i < pending_n_; ++i) {
+    pending_[static_cast<std::size_t>(i - 1)] = pending_[static_cast<std::size_t>(i)];
+  }
+  --pending_n_;
+  return true;
+}
+
 ReadStatus SimSource::read(const CycleTime& time, EncoderSample& out) noexcept {
+  return options_.board_clock.free_running ? read_free_running(time, out) : read_aligned(time, out);
+}
+
+ReadStatus SimSource::read_aligned(const CycleTime& time, EncoderSample& out) noexcept {
   // The simulated board free-runs with the loop's deadlines: cycle k is the
   // loop's cycle k, so a deadline the loop skipped (overrun) is a board cycle
   // nobody read, seen by the decoder as a sequence gap, and sample k is always
@@ -99,12 +116,70 @@ ReadStatus SimSource::read(const CycleTime& time, EncoderSample& out) noexcept {
   return ReadStatus::kNoSample;
 }
 
-void SimSource::stall_if_due(double t_s) noexcept {
+void SimSource::run_board_until(std::int64_t until, bool first_only) noexcept {
+  // Room for what one more board cycle (and frames held back) can complete.
+  constexpr int kRoom = BoardDecoder::kQueueCapacity - 8;
+  for (;;) {
+    while (decoder_.queued() < kRoom && feed_one(until)) {
+      if (first_only && decoder_.queued() > 0) return;
+    }
+    if (decoder_.queued() >= kRoom) return;  // the rest waits on the bus, as in a socket
+    if (start_mono_ns_ + rig_.sample_offset_ns(cycle_) > until) return;
+    queue_frames(rig_.step(cycle_, frames_, start_mono_ns_, wall_offset_ns_));
+    ++cycle_;
+  }
+}
+
+ReadStatus SimSource::read_free_running(const CycleTime& time, EncoderSample& out) noexcept {
+  const std::int64_t period = options_.period_ns;
+  if (cycle_ == 0 && last_now_ns_ == 0 && options_.start_mono_ns == 0 &&
+      time.deadline_mono_ns > 0) {
+    start_mono_ns_ = time.deadline_mono_ns;  // the board powers up with the loop's first deadline
+  }
+  std::int64_t now = std::max(std::max(time.now_mono_ns, time.deadline_mono_ns), last_now_ns_);
+  now += stall_if_due(sim_time_s(now));  // a stalled reader comes back later
+  last_now_ns_ = now;
+  run_board_until(now, false);
+  std::int64_t waited = now;
+  if (!time.catch_up && decoder_.queued() == 0) {
+    // Nothing yet: the reader waits (simulated) up to half a period past the
+    // deadline for the next cycle, as the socketcan backend waits for its poll deadline.
+    waited = std::max(now, time.deadline_mono_ns + period / 2);
+    run_board_until(waited, true);
+  }
+  if (decoder_.poll_sample(out)) {
+    last_delivered_mono_ns_ = out.mono_ns;
+    return ReadStatus::kSample;
+  }
+  if (time.catch_up) return ReadStatus::kNothingDue;
+  if (decoder_.has_partial() && waited - decoder_.partial_mono_ns() > period / 2 &&
+      decoder_.flush(out)) {
+    last_delivered_mono_ns_ = out.mono_ns;
+    return ReadStatus::kSample;
+  }
+  if (!free_running_board_overdue(last_delivered_mono_ns_, waited, period))
+    return ReadStatus::kNothingDue;
+  decoder_.make_missing(out, time.deadline_mono_ns, time.deadline_mono_ns + wall_offset_ns_);
+  return ReadStatus::kNoSample;
+}
+
+int SimSource::backlog() const noexcept {
+  if (!options_.board_clock.free_running) return 0;
+  const bool more = (pending_n_ > 0 && pending_[0].mono_ns <= last_now_ns_) ||
+                    start_mono_ns_ + rig_.sample_offset_ns(cycle_) <= last_now_ns_;
+  return decoder_.queued() + (more ? 1 : 0);
+}
+
+std::int64_t SimSource::stall_if_due(double t_s) noexcept {
+  std::int64_t slept = 0;
   for (const sim::SimFault& f : options_.faults) {
-    if (f.kind == sim::SimFault::Kind::kStall && last_read_s_ < f.start_s && t_s >= f.start_s)
+    if (f.kind == sim::SimFault::Kind::kStall && last_read_s_ < f.start_s && t_s >= f.start_s) {
       sleep_for_s(f.duration_s);
+      slept += static_cast<std::int64_t>(std::llround(f.duration_s * 1e9));
+    }
   }
   last_read_s_ = t_s;
+  return slept;
 }
 
 }  // namespace exodaq::drivers

@@ -34,6 +34,8 @@ void SocketCanSource::start() {
   offset_width_ns_ = INT64_MAX;
   newest_complete_mono_ = 0;
   partial_since_mono_ = 0;
+  socket_may_hold_more_ = false;
+  last_delivered_mono_ = 0;
   measure_offset();
   last_open_attempt_mono_ = port_->now_mono_ns();
   const int r = port_->open();
@@ -117,7 +119,12 @@ void SocketCanSource::feed(const can::CanFrame& frame) noexcept {
 }
 
 bool SocketCanSource::drain() noexcept {
+  socket_may_hold_more_ = false;
   for (;;) {
+    if (!config_.sync_master && decoder_.queued() >= kRefillBelow) {
+      socket_may_hold_more_ = true;  // the socket keeps the rest until there is room
+      return true;
+    }
     CanRxInfo info;
     const int n = port_->receive(rx_.data(), kBatch, info);
     if (n < 0) {
@@ -212,28 +219,74 @@ bool SocketCanSource::flush_partial(bool got, std::int64_t sync_mono, std::int64
     merge_superseded(out, scratch_);
     out = scratch_;
     ++detail_.superseded_samples;
+    decoder_.count_superseded(1);
     ++detail_.partial_flushes;
   }
   return true;
 }
 
+int SocketCanSource::backlog() const noexcept {
+  if (config_.sync_master || !up_) return 0;
+  return decoder_.queued() + (socket_may_hold_more_ ? 1 : 0);
+}
+
 ReadStatus SocketCanSource::read(const CycleTime& time, EncoderSample& out) noexcept {
   const std::int64_t start = time.deadline_mono_ns;
   const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
-  // Wait for the cycle until the read deadline, never past the end of the
-  // cycle minus a guard of a tenth of the period.
-  const std::int64_t poll_deadline =
-      std::min(start + config_.read_deadline_ns, start + period - period / 10);
   measure_offset();
   const std::int64_t now = port_->now_mono_ns();
   if (!up_ && !try_open(now)) {
+    if (time.catch_up) return ReadStatus::kNothingDue;
     decoder_.make_missing(out, start, start + offset_ns_);
     return ReadStatus::kNoSample;
   }
+  if (config_.sync_master) return read_sync_master(time, now, out);
+  // Wait for a cycle until the read deadline, never past the end of the
+  // cycle minus a guard of a tenth of the period.
+  return read_free_running(
+      time, std::min(start + config_.read_deadline_ns, start + period - period / 10), out);
+}
+
+ReadStatus SocketCanSource::read_sync_master(const CycleTime& time, std::int64_t now,
+                                             EncoderSample& out) noexcept {
+  const std::int64_t start = time.deadline_mono_ns;
+  const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
+  if (time.catch_up) return ReadStatus::kNothingDue;  // one SYNC, one sample
+  // The board samples when the SYNC arrives: a late SYNC moves the sample
+  // instant (stamped truthfully, the receive stamp of its count frames), and
+  // the answer is waited for from the SYNC on, not from the missed deadline.
+  const bool late = now - start > period / 10;
+  if (late) ++detail_.late_syncs;
+  const std::int64_t base = late ? now : start;
+  const std::int64_t poll_deadline =
+      std::min(base + config_.read_deadline_ns, base + period - period / 10);
   const std::int64_t sync_mono = send_sync(now);
   receive_until(poll_deadline, sync_mono);
   const bool got = take_newest(out);
   if (flush_partial(got, sync_mono, period, out) || got) return ReadStatus::kSample;
+  decoder_.make_missing(out, start, start + offset_ns_);
+  return ReadStatus::kNoSample;
+}
+
+ReadStatus SocketCanSource::read_free_running(const CycleTime& time, std::int64_t poll_deadline,
+                                              EncoderSample& out) noexcept {
+  const std::int64_t start = time.deadline_mono_ns;
+  const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
+  if (time.catch_up) {
+    drain();
+  } else {
+    receive_until(poll_deadline, 0);
+  }
+  // Every complete cycle, oldest first: none is superseded.
+  if (decoder_.poll_sample(out) || flush_partial(false, 0, period, out)) {
+    last_delivered_mono_ = out.mono_ns;
+    return ReadStatus::kSample;
+  }
+  if (time.catch_up) return ReadStatus::kNothingDue;
+  // Not overdue yet: the board's clock drifted just past this wake, the next
+  // wake brings two. Down, or overdue: MISSING, every wake.
+  if (up_ && !free_running_board_overdue(last_delivered_mono_, port_->now_mono_ns(), period))
+    return ReadStatus::kNothingDue;
   decoder_.make_missing(out, start, start + offset_ns_);
   return ReadStatus::kNoSample;
 }

@@ -433,6 +433,113 @@ TEST(SocketCanSource, FreeRunningBoardEarlyInTheCycle) {
   }
 }
 
+// A free-running board's cycles queued in the socket while the reader was away
+// (here 300 cycles, far more than the decoder's queue): the reader delivers
+// them all, oldest first, one per read, saying after each whether more wait;
+// catch-up reads never wait and never send anything. Nothing superseded,
+// nothing dropped from the decoder's queue, no sequence gap.
+TEST(SocketCanSource, FreeRunningBacklogIsDeliveredOldestFirstWithNothingSuperseded) {
+  Fixture f(false);
+  f.source->start();
+  sim::SimRig rig{sim::SimOptions{}};
+  sim::SimBoard::Frames frames{};
+  constexpr std::int64_t kQueued = 300;
+  for (std::int64_t k = 0; k < kQueued; ++k) {
+    const int n = rig.step(k, frames, 0, 0);
+    for (int i = 0; i < n; ++i) {
+      f.port->push(frames[static_cast<std::size_t>(i)],
+                   f.deadline(0) - (kQueued - k) * kPeriod + 200'000 + i * 1000);
+    }
+  }
+  CycleTime t;
+  t.deadline_mono_ns = f.deadline(0);
+  t.now_mono_ns = f.deadline(0);
+  t.period_ns = kPeriod;
+  f.port->advance_to(t.deadline_mono_ns);
+  EXPECT_TRUE(f.source->free_running());
+  std::int64_t k = 0;
+  for (; k < kQueued; ++k) {
+    ASSERT_EQ(f.source->read(t, f.sample), ReadStatus::kSample) << k;
+    EXPECT_EQ(f.sample.board_seq, k % 256);
+    EXPECT_TRUE(f.sample.present);
+    EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, 0U) << k;
+    // Stamped when its COUNTS_B came in, long before this read.
+    EXPECT_LT(f.sample.mono_ns, f.deadline(0) - (kQueued - k) * kPeriod + 210'000);
+    EXPECT_GT(f.sample.mono_ns, f.deadline(0) - (kQueued - k) * kPeriod + 200'000);
+    EXPECT_EQ(f.source->backlog() > 0, k + 1 < kQueued) << k;
+    EXPECT_EQ(f.port->mono, f.deadline(0));  // never waited
+    t.catch_up = true;
+  }
+  EXPECT_EQ(f.source->read(t, f.sample), ReadStatus::kNothingDue);
+  EXPECT_TRUE(f.port->sent.empty());
+  EXPECT_EQ(f.source->stats().superseded_samples, 0);
+  EXPECT_EQ(f.source->detail().superseded_samples, 0);
+  EXPECT_EQ(f.source->decoder().detail().queue_overflows, 0);
+  EXPECT_EQ(f.source->stats().seq_gaps, 0);
+  EXPECT_EQ(f.source->stats().missing_samples, 0);
+}
+
+// Following a free-running board whose clock is a little slow: a read that
+// finds nothing by its poll deadline while the last sample is barely a period
+// old has nothing to publish (no MISSING); once the board is overdue (1.5
+// periods), MISSING every read until it comes back.
+TEST(SocketCanSource, FreeRunningNothingDueUntilTheBoardIsOverdue) {
+  Fixture f(false);
+  f.source->start();
+  const auto counts = [&](std::uint8_t seq, std::int64_t at) {
+    f.port->push(can::encode_counts(0, {1, 2, 3}, 0, seq), at);
+    f.port->push(can::encode_counts(1, {4, 5, 6}, 0, seq), at + 10'000);
+  };
+  counts(0, f.deadline(0) + 390'000);  // complete at 400 µs: just within the wait
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.mono_ns, f.deadline(0) + 400'000);
+  counts(1, f.deadline(1) + 395'000);              // complete at 405 µs: just after it
+  EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);  // 1.0 periods since the last: not overdue
+  EXPECT_EQ(f.port->mono, f.deadline(1) + 400'000);
+  ASSERT_EQ(f.cycle(2), ReadStatus::kSample);  // there at once
+  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.port->mono, f.deadline(2));
+  // Then silence: at the next poll deadline the last sample is 1.995 periods
+  // old, overdue: MISSING, every read.
+  EXPECT_EQ(f.cycle(3), ReadStatus::kNoSample);
+  EXPECT_NE(f.sample.flags & sample_flag::kMissing, 0U);
+  EXPECT_EQ(f.sample.mono_ns, f.deadline(3));
+  EXPECT_EQ(f.cycle(4), ReadStatus::kNoSample);
+  EXPECT_EQ(f.source->stats().missing_samples, 2);
+  EXPECT_EQ(f.source->stats().superseded_samples, 0);
+}
+
+// Sync master, the loop 2.5 ms late: the SYNC leaves late and is counted; the
+// reader waits for its answer from the SYNC on (not from the missed
+// deadline, whose poll deadline has long passed), so the sample arrives with
+// its true stamp instead of going MISSING and being superseded later.
+TEST(SocketCanSource, ALateSyncIsCountedAndItsAnswerWaitedFor) {
+  Fixture f;
+  Board board(*f.port);
+  f.source->start();
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  CycleTime t;
+  t.deadline_mono_ns = f.deadline(1);
+  t.period_ns = kPeriod;
+  t.cycle = 1;
+  const std::int64_t sync_at = f.deadline(1) + 2'500'000;
+  f.port->advance_to(sync_at);
+  t.now_mono_ns = sync_at;
+  ASSERT_EQ(f.source->read(t, f.sample), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.mono_ns, sync_at + board.latency_b);  // the true instant
+  EXPECT_EQ(f.source->detail().late_syncs, 1);
+  // 50 µs late is not late.
+  f.port->advance_to(f.deadline(4) + 50'000);
+  t.deadline_mono_ns = f.deadline(4);
+  t.now_mono_ns = f.port->mono;
+  ASSERT_EQ(f.source->read(t, f.sample), ReadStatus::kSample);
+  EXPECT_EQ(f.source->detail().late_syncs, 1);
+  EXPECT_EQ(f.source->stats().missing_samples, 0);
+  EXPECT_EQ(f.source->detail().superseded_samples, 0);
+  EXPECT_EQ(f.source->backlog(), 0);  // sync master: one SYNC, one sample
+}
+
 TEST(SocketCanSource, UnstampedFramesStampedAtReadTime) {
   Fixture f;
   Board board(*f.port);

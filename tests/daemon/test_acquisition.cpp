@@ -431,10 +431,12 @@ TEST(Acquisition, ThreadedLoopPlaysARecordingToItsEnd) {
   }
 }
 
-// A read held off for 40 ms (LiveTimeBase): the loop skips the deadlines it
-// missed instead of bursting through them; every skipped seq is counted as an
-// overrun (none goes uncounted), and the next sample is flagged LATE.
-TEST(Acquisition, AStalledReadIsCountedAsOverrunsAndTheNextSampleIsLate) {
+// A read held off for 40 ms (LiveTimeBase) on a source that samples at the
+// loop's deadlines (sync master): the loop skips the deadlines it missed
+// instead of bursting through them; every skipped seq is counted as an
+// overrun (none goes uncounted). The stalled cycle's sample, taken at its
+// deadline and published 40 ms later, is LATE.
+TEST(Acquisition, AStalledReadIsCountedAsOverrunsAndItsSampleIsLate) {
   MemorySink* sink = nullptr;
   auto stalling = std::make_unique<StallingSource>(std::make_unique<RampSource>(), 300, 40);
   StallingSource* source = stalling.get();
@@ -449,7 +451,8 @@ TEST(Acquisition, AStalledReadIsCountedAsOverrunsAndTheNextSampleIsLate) {
   std::int64_t previous = -1;
   std::int64_t skipped = 0;
   std::int64_t after_stall = -1;
-  bool after_stall_late = false;
+  bool stalled_late = false;
+  std::int64_t late = 0;
   exodaq::status_t last_status;
   for (const auto& [channel, bytes] : sink->kept) {
     if (channel == exodaq::msg::Kind::kStatus) {
@@ -458,16 +461,20 @@ TEST(Acquisition, AStalledReadIsCountedAsOverrunsAndTheNextSampleIsLate) {
     }
     if (channel != exodaq::msg::Kind::kJointState) continue;
     const auto js = decode<exodaq::joint_state_t>(bytes);
+    if (js.sample_flags & exodaq::joint_state_t::SAMPLE_LATE) ++late;
+    if (js.seq == stalled_at)
+      stalled_late = (js.sample_flags & exodaq::joint_state_t::SAMPLE_LATE) != 0;
     if (previous >= 0) skipped += js.seq - previous - 1;
     if (previous == stalled_at) {
       after_stall = js.seq;
-      after_stall_late = (js.sample_flags & exodaq::joint_state_t::SAMPLE_LATE) != 0;
     }
     previous = js.seq;
   }
   // 40 ms held off at a 1 ms period: at least 40 deadlines passed.
   EXPECT_GE(after_stall - stalled_at - 1, 40);
-  EXPECT_TRUE(after_stall_late);
+  EXPECT_TRUE(stalled_late);
+  EXPECT_GE(late, 1);
+  EXPECT_EQ(late, acq->late_samples());
   // The final status carries the last seq, skips after the last cycle included.
   skipped += last_status.seq - previous;
   EXPECT_EQ(acq->publisher().ring_drops(), 0);

@@ -85,13 +85,15 @@ TEST(TimeBase, TheSourceChoosesLiveOrRecordedTime) {
   core::ClockShared clock;
   Live live;
   Recording recording;
-  EXPECT_FALSE(core::make_time_base(live, clock, {}, kMs)->recorded());
-  EXPECT_TRUE(core::make_time_base(recording, clock, {}, kMs)->recorded());
+  const auto loop_clock = core::make_monotonic_loop_clock();
+  EXPECT_FALSE(core::make_time_base(live, clock, {}, kMs, *loop_clock)->recorded());
+  EXPECT_TRUE(core::make_time_base(recording, clock, {}, kMs, *loop_clock)->recorded());
 }
 
 TEST(TimeBase, LiveSkipsTheDeadlinesACycleOverran) {
   core::ClockShared clock;
-  core::LiveTimeBase live(clock, {}, kMs);
+  const auto loop_clock = core::make_monotonic_loop_clock();
+  core::LiveTimeBase live(clock, {}, kMs, *loop_clock);
   const std::int64_t next = 50 * kMs;
   EXPECT_EQ(live.overrun(next - 1, next), 0);
   EXPECT_EQ(live.overrun(next, next), 0);
@@ -108,7 +110,8 @@ TEST(TimeBase, LiveStampsWallTimeAndFlagsAnUnsynchronisedClockByPolicy) {
   clock.synchronised = false;
   config::ClockPolicy policy;
   policy.require_sync = config::RequireSync::kMark;
-  core::LiveTimeBase live(clock, policy, kMs);
+  const auto loop_clock = core::make_monotonic_loop_clock();
+  core::LiveTimeBase live(clock, policy, kMs, *loop_clock);
   drivers::EncoderSample s;
   s.mono_ns = 5'000 * kMs + 123'456;
   core::SampleTime t = live.stamp(s);
@@ -149,7 +152,8 @@ TEST(TimeBase, RecordedKeepsTheRecordingsTimeSeqAndClockVerdict) {
   Recording recording;
   config::ClockPolicy policy;
   policy.require_sync = config::RequireSync::kMark;
-  core::RecordedTimeBase recorded(recording, 0.0, policy);
+  const auto loop_clock = core::make_monotonic_loop_clock();
+  core::RecordedTimeBase recorded(recording, 0.0, policy, *loop_clock);
   EXPECT_EQ(recorded.seq(7), 7);  // no recorded seq: the loop's count
   recording.seq = 1234;
   EXPECT_EQ(recorded.seq(7), 1234);

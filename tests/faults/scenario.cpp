@@ -38,6 +38,7 @@ class KeepingSink final : public core::MessageSink {
           break;
         }
         case exodaq::msg::Kind::kEncoderRaw:
+        case exodaq::msg::Kind::kHoming:
           break;
       }
     } catch (...) {

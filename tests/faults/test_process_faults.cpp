@@ -18,6 +18,7 @@
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
+#include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
 #include "exodaq/status_t.hpp"
@@ -284,4 +285,98 @@ TEST(ProcessFault, SigkillThenRestartIsANewRunFromSeqZeroUnhomedWithNothingStale
       static_cast<long long>(run_b), static_cast<long long>(b.front().seq), b.size(),
       static_cast<long long>(holes_b), static_cast<long long>(sb.back().overruns),
       static_cast<long long>(rehomed->seq));
+}
+
+// Issue 15: a free-running board (the sim's own clock, 50 ppm slow, a third of
+// a period out of phase) and the loop held off for 50 ms (the sim's stall
+// fault blocks the read). The board keeps sampling; the daemon publishes every
+// sample it took, once, in order: the recorder sees seq 0, 1, 2, … without a
+// hole and board seq 0, 1, 2, … (mod 256) without a skip, nothing MISSING, and
+// the stall's samples flagged LATE. A sample flagged LATE went out more than a
+// period after its instant, so the recorder got it later still.
+TEST(ProcessFault, FreeRunningBoardThroughALoopStallLosesNothing) {
+  const std::string dir = test::make_temp_dir("freerun");
+  const std::string prefix = test::unique_prefix("freerun");
+  std::string config;
+  const std::string url = private_port_config(dir, prefix, config);
+  {
+    std::string text = test::read_file(config);
+    const auto at = text.find("  sim:\n");
+    ASSERT_NE(at, std::string::npos);
+    text.insert(at + 7,
+                "    board_clock: {free_running: true, drift_ppm: 50, phase: 0.3}\n"
+                "    faults: [{kind: stall, at_s: 2.0, for_s: 0.05}]\n");
+    std::ofstream(config) << text;
+  }
+  test::Process recorder(
+      {EXODAQ_RECORDER, url, prefix + "EXO_(JOINT_STATE|ENCODER_RAW|STATUS)", dir + "/rec.bin"}, "",
+      dir + "/rec.err");
+  std::this_thread::sleep_for(300ms);
+  std::optional<int> code;
+  {
+    test::Process daemon({EXODAQD, "--config", config, "--duration", "4"}, dir + "/d.out",
+                         dir + "/d.err");
+    code = daemon.wait(30s);
+  }
+  std::this_thread::sleep_for(500ms);
+  recorder.signal(SIGTERM);
+  recorder.wait(5s);
+  ASSERT_EQ(code, 0) << test::read_file(dir + "/d.err");
+
+  const auto recorded = test::read_recorder_file(dir + "/rec.bin");
+  std::vector<exodaq::joint_state_t> joints;
+  std::vector<std::int64_t> received;  // receive mono ns of each joint_state
+  std::vector<exodaq::encoder_raw_t> raws;
+  std::vector<exodaq::status_t> statuses;
+  for (const auto& m : recorded) {
+    if (m.channel == prefix + "EXO_JOINT_STATE") {
+      joints.push_back(test::decode<exodaq::joint_state_t>(m.data));
+      received.push_back(m.time);
+    } else if (m.channel == prefix + "EXO_ENCODER_RAW") {
+      raws.push_back(test::decode<exodaq::encoder_raw_t>(m.data));
+    } else if (m.channel == prefix + "EXO_STATUS") {
+      statuses.push_back(test::decode<exodaq::status_t>(m.data));
+    }
+  }
+  ASSERT_GT(joints.size(), 3000u);
+  ASSERT_FALSE(statuses.empty());
+  const exodaq::status_t& last = statuses.back();
+  EXPECT_EQ(last.publish_failures, 0);
+  EXPECT_EQ(joints.front().seq, 0);
+  EXPECT_EQ(seq_holes(joints), 0) << "a cycle lost between the daemon and the recorder";
+  ASSERT_EQ(raws.size(), joints.size());
+  std::int64_t late = 0;
+  std::int64_t longest_late_run = 0;
+  std::int64_t run = 0;
+  for (std::size_t i = 0; i < raws.size(); ++i) {
+    EXPECT_EQ(raws[i].seq, static_cast<std::int64_t>(i));
+    EXPECT_TRUE(raws[i].present) << "seq " << raws[i].seq;
+    EXPECT_EQ(raws[i].board_seq, static_cast<std::int64_t>(i) % 256) << "seq " << raws[i].seq;
+    EXPECT_EQ(joints[i].sample_flags & exodaq::joint_state_t::SAMPLE_MISSING, 0);
+    if (joints[i].sample_flags & exodaq::joint_state_t::SAMPLE_LATE) {
+      ++late;
+      run = joints[i].seq > 0 && i > 0 &&
+                    (joints[i - 1].sample_flags & exodaq::joint_state_t::SAMPLE_LATE)
+                ? run + 1
+                : 1;
+      longest_late_run = std::max(longest_late_run, run);
+      EXPECT_GT(received[i] - joints[i].mono_ns, 1'000'000) << "LATE but received on time";
+    }
+  }
+  // The 50 ms stall: the samples it held back, all but the newest over a
+  // period old when they went out.
+  EXPECT_GE(longest_late_run, 48);
+  EXPECT_EQ(last.missing_samples, 0);
+  EXPECT_EQ(last.seq_gaps, 0);
+  // The daemon's final line: nothing superseded (the sim's queue held every sample).
+  const std::string log = test::read_file(dir + "/d.err") + test::read_file(dir + "/d.out");
+  EXPECT_NE(log.find(" caught up after a late wake, 0 superseded, 0 late SYNCs)"),
+            std::string::npos)
+      << log;
+  std::printf(
+      "FREE-RUNNING: %zu cycles, seq 0..%lld without a hole, board seq without a skip, 0 missing; "
+      "%lld LATE (longest run %lld, the stall); %lld overruns (deadlines skipped, samples "
+      "caught up)\n",
+      joints.size(), static_cast<long long>(joints.back().seq), static_cast<long long>(late),
+      static_cast<long long>(longest_late_run), static_cast<long long>(last.overruns));
 }

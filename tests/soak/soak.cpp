@@ -12,8 +12,16 @@
 //     out-of-order frames, never FAULT;
 //   - after the warm-up, VmRSS stays within 1 MiB (max - min) and the number
 //     of open file descriptors never exceeds its value at the end of warm-up.
+// With --free-running (issue 15) the sim's board samples on its own clock
+// (board_clock: free_running, --drift-ppm, a third of a period out of phase):
+// then also every board sample arrives once, in order (encoder_raw board_seq
+// without a skip beyond counted publish failures), none MISSING, no board seq
+// gap, and a skipped deadline is no seq hole (its sample came late, flagged
+// LATE). --stress-bursts ON:OFF runs `stress-ng --cpu 2` for ON seconds every
+// ON + OFF seconds during the run. Lateness and the LATE samples are reported.
 // Writes soak.json and soak.txt to --out. scripts/soak is the front end.
 #include <lcm/lcm.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -55,6 +63,23 @@ struct Subscriber {
   std::int64_t out_of_order = 0;                 // seq not increasing (must stay 0)
   std::map<std::int64_t, std::int64_t> run_ids;  // run_id -> messages
   std::int64_t joint_sample_flags_or = 0;
+  // LATE samples; runs of consecutive LATE samples (a stall caught up): how
+  // many, the longest; LATE ones received within a period of their stamp
+  // (impossible: must stay 0); samples received over a period after their
+  // stamp without LATE (the network's and this process's delay, reported).
+  std::int64_t late = 0;
+  std::int64_t late_runs = 0;
+  std::int64_t longest_late_run = 0;
+  std::int64_t late_run = 0;
+  std::int64_t late_but_on_time = 0;
+  std::int64_t received_late_unflagged = 0;
+  std::int64_t period_ns = 1'000'000;
+  // encoder_raw: board samples, by board seq
+  std::int64_t raw_last_seq = -1;
+  std::int64_t raw_last_board_seq = -1;
+  std::int64_t board_seq_skips = 0;  // board samples not received (beyond lost messages)
+  std::int64_t raw_lost = 0;         // encoder_raw messages not received (seq holes)
+  std::int64_t not_present = 0;      // MISSING samples
   // palm_pose, encoder_raw
   std::int64_t palms = 0;
   std::int64_t valid_palms = 0;
@@ -78,6 +103,19 @@ void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
     ++s->joints;
     ++s->run_ids[m.run_id];
     s->joint_sample_flags_or |= m.sample_flags;
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    const std::int64_t received = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+    const bool late = (m.sample_flags & exodaq::joint_state_t::SAMPLE_LATE) != 0;
+    if (late) {
+      ++s->late;
+      if (s->late_run == 0) ++s->late_runs;
+      s->longest_late_run = std::max(s->longest_late_run, ++s->late_run);
+      if (received - m.mono_ns <= s->period_ns) ++s->late_but_on_time;
+    } else {
+      s->late_run = 0;
+      if (received - m.mono_ns > s->period_ns) ++s->received_late_unflagged;
+    }
     if (s->first_seq < 0) {
       s->first_seq = m.seq;
     } else if (m.seq <= s->last_seq) {
@@ -95,7 +133,24 @@ void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
     ++s->palms;
     if (m.valid) ++s->valid_palms;
   } else if (ch == s->prefix + "EXO_ENCODER_RAW") {
+    exodaq::encoder_raw_t m;
+    if (m.decode(rbuf->data, 0, size) < 0) {
+      ++s->decode_errors;
+      return;
+    }
     ++s->raws;
+    if (!m.present) ++s->not_present;
+    if (m.present && m.board_seq >= 0) {
+      if (s->raw_last_seq >= 0 && m.seq > s->raw_last_seq) {
+        // d cycles on, the board seq should be d on as well (one board sample a cycle).
+        const std::int64_t d = m.seq - s->raw_last_seq;
+        s->raw_lost += d - 1;
+        const std::int64_t board_d = ((m.board_seq - s->raw_last_board_seq) % 256 + 256) % 256;
+        s->board_seq_skips += ((board_d - d) % 256 + 256) % 256;
+      }
+      s->raw_last_seq = m.seq;
+      s->raw_last_board_seq = m.board_seq;
+    }
   } else if (ch == s->prefix + "EXO_STATUS") {
     exodaq::status_t m;
     if (m.decode(rbuf->data, 0, size) < 0) {
@@ -190,8 +245,34 @@ std::string json_escape(const std::string& s) {
 int usage() {
   std::fprintf(stderr,
                "usage: exodaq_soak [--minutes N] [--out DIR] [--warmup S] [--sample S] "
-               "[--exodaqd PATH]\n");
+               "[--exodaqd PATH] [--free-running 0|1] [--drift-ppm D] [--stress-bursts ON:OFF]\n");
   return 2;
+}
+
+// `stress-ng --cpu 2` for on_s seconds every on_s + off_s seconds (the first
+// burst after off_s) until `stop`; counts the bursts started.
+void stress_bursts(double on_s, double off_s, const std::string& dir, std::atomic<bool>& stop,
+                   std::atomic<int>& bursts) {
+  const auto pause = [&](double seconds) {
+    const auto until = Clock::now() + std::chrono::milliseconds(static_cast<long>(seconds * 1000));
+    while (!stop.load() && Clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  };
+  for (;;) {
+    pause(off_s);
+    if (stop.load()) return;
+    ++bursts;
+    exodaq::test::Process stress(
+        {"stress-ng", "--cpu", "2", "--timeout", std::to_string(on_s) + "s", "--quiet"},
+        dir + "/stress.out", dir + "/stress.err");
+    while (!stop.load() && !stress.wait(std::chrono::milliseconds(100))) {
+    }
+    if (stop.load()) {
+      stress.signal(SIGTERM);
+      stress.wait(std::chrono::seconds(5));
+      return;
+    }
+  }
 }
 
 }  // namespace
@@ -202,6 +283,10 @@ int main(int argc, char** argv) {
   double warmup_s = -1;
   double sample_s = -1;
   std::string exodaqd = EXODAQD;
+  bool free_running = false;
+  double drift_ppm = 50.0;
+  double burst_on_s = 0;
+  double burst_off_s = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (i + 1 >= argc) return usage();
@@ -216,6 +301,16 @@ int main(int argc, char** argv) {
       sample_s = std::stod(v);
     } else if (a == "--exodaqd") {
       exodaqd = v;
+    } else if (a == "--free-running") {
+      free_running = v != "0";
+    } else if (a == "--drift-ppm") {
+      drift_ppm = std::stod(v);
+    } else if (a == "--stress-bursts") {
+      const auto colon = v.find(':');
+      if (colon == std::string::npos) return usage();
+      burst_on_s = std::stod(v.substr(0, colon));
+      burst_off_s = std::stod(v.substr(colon + 1));
+      if (!(burst_on_s > 0) || !(burst_off_s > 0)) return usage();
     } else {
       return usage();
     }
@@ -247,6 +342,17 @@ int main(int argc, char** argv) {
     return 1;
   }
   config_text.replace(at, from.size(), ":" + std::to_string(port) + "?");
+  if (free_running) {
+    const auto sim = config_text.find("  sim:\n");
+    if (sim == std::string::npos) {
+      std::fprintf(stderr, "soak: no source.sim section in the sim config\n");
+      return 1;
+    }
+    char clock[160];
+    std::snprintf(clock, sizeof clock,
+                  "    board_clock: {free_running: true, drift_ppm: %g, phase: 0.3}\n", drift_ppm);
+    config_text.insert(sim + 7, clock);
+  }
   const std::string config = out_dir + "/exodaqd.yaml";
   std::ofstream(config) << config_text;
   const std::string url =
@@ -267,11 +373,25 @@ int main(int argc, char** argv) {
 
   std::printf(
       "soak: exodaqd on the sim at 1 kHz for %.1f min (warm-up %.0f s, sampling every %.0f "
-      "s), output in %s\n",
-      minutes, warmup_s, sample_s, out_dir.c_str());
+      "s), board %s, output in %s\n",
+      minutes, warmup_s, sample_s,
+      free_running ? ("free-running at " + std::to_string(drift_ppm) + " ppm").c_str()
+                   : "aligned to the loop (sync master)",
+      out_dir.c_str());
+  if (burst_on_s > 0) {
+    std::printf("soak: stress-ng --cpu 2 bursts of %.0f s every %.0f s\n", burst_on_s,
+                burst_on_s + burst_off_s);
+  }
   std::fflush(stdout);
   std::vector<ProcSample> samples;
   std::optional<int> code;
+  std::atomic<bool> stop_stress{false};
+  std::atomic<int> bursts{0};
+  std::thread stresser;
+  if (burst_on_s > 0) {
+    stresser =
+        std::thread([&] { stress_bursts(burst_on_s, burst_off_s, out_dir, stop_stress, bursts); });
+  }
   const auto t0 = Clock::now();
   {
     exodaq::test::Process daemon(
@@ -293,6 +413,8 @@ int main(int argc, char** argv) {
       code = daemon.wait(std::chrono::seconds(5));
     }
   }
+  stop_stress.store(true);
+  if (stresser.joinable()) stresser.join();
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   stop.store(true);
   listener.join();
@@ -327,13 +449,26 @@ int main(int argc, char** argv) {
             std::to_string(lost_messages) + " <= " + std::to_string(last.publish_failures) + ")");
   check(socket_drops <= 0, "the subscriber's socket dropped nothing");
   check(sub.joints + sub.holes == sub.last_seq + 1, "received + holes == last seq + 1");
-  check(sub.joints + (sub.holes - last.overruns) == last.cycles,
+  // Sync master, a skipped deadline is a seq never published; following a
+  // free-running board its sample comes late, so it is no hole.
+  const std::int64_t skipped = free_running ? 0 : last.overruns;
+  check(sub.joints + (sub.holes - skipped) == last.cycles,
         "joint_state received (" + std::to_string(sub.joints) + ") + not published (" +
-            std::to_string(sub.holes - last.overruns) + ") == status cycles (" +
+            std::to_string(sub.holes - skipped) + ") == status cycles (" +
             std::to_string(last.cycles) + ")");
   check(last.seq == sub.last_seq, "final status covers the last cycle received");
   check(last.missing_samples == 0, "missing samples 0 on a fault-free sim");
-  check(last.seq_gaps <= last.overruns, "board seq gaps only from overruns");
+  check(sub.not_present == 0, "no MISSING sample received");
+  check(last.seq_gaps <= skipped, free_running ? "no board seq gap (every board sample taken)"
+                                               : "board seq gaps only from overruns");
+  check(sub.late_but_on_time == 0, "no LATE sample received within a period of its stamp");
+  if (free_running) {
+    check(sub.holes <= last.publish_failures,
+          "no seq hole but counted publish failures (overruns caught up, not skipped)");
+    check(sub.board_seq_skips == 0, "0 board samples lost: encoder_raw board seq without a skip (" +
+                                        std::to_string(sub.board_seq_skips) + " skipped beyond " +
+                                        std::to_string(sub.raw_lost) + " messages not received)");
+  }
   check(last.bad_frames == 0 && last.duplicates == 0 && last.out_of_order == 0,
         "no bad, duplicate or out-of-order frames");
   check(sub.decode_errors == 0, "every message decodes");
@@ -422,6 +557,17 @@ int main(int argc, char** argv) {
                 p50.size(), percentile(p50, 50), percentile(p99, 50), percentile(p99, 100),
                 percentile(mx, 100), percentile(work99, 50));
   txt << line;
+  std::snprintf(
+      line, sizeof line,
+      "board %s; LATE samples %lld in %lld runs (longest %lld), LATE but received "
+      "on time %lld, received over a period late unflagged %lld; encoder_raw "
+      "present=false %lld, board seq skips %lld; stress bursts %d\n",
+      free_running ? "free-running" : "aligned (sync master)", static_cast<long long>(sub.late),
+      static_cast<long long>(sub.late_runs), static_cast<long long>(sub.longest_late_run),
+      static_cast<long long>(sub.late_but_on_time),
+      static_cast<long long>(sub.received_late_unflagged), static_cast<long long>(sub.not_present),
+      static_cast<long long>(sub.board_seq_skips), bursts.load());
+  txt << line;
   txt << "states (status messages):";
   for (const auto& [state, n] : states) txt << " " << state << "=" << n;
   txt << "\n";
@@ -439,7 +585,15 @@ int main(int argc, char** argv) {
      << ", \"holes\": " << sub.holes << ", \"uncounted_gaps\": " << uncounted
      << ", \"palm_pose\": " << sub.palms << ", \"valid_palm_pose\": " << sub.valid_palms
      << ", \"encoder_raw\": " << sub.raws << ", \"status\": " << sub.statuses.size()
-     << ", \"socket_drops\": " << socket_drops << "},\n  \"rss_kib\": {\"first\": " << first_rss
+     << ", \"socket_drops\": " << socket_drops << ", \"late\": " << sub.late
+     << ", \"late_runs\": " << sub.late_runs << ", \"longest_late_run\": " << sub.longest_late_run
+     << ", \"late_but_on_time\": " << sub.late_but_on_time
+     << ", \"received_late_unflagged\": " << sub.received_late_unflagged
+     << ", \"not_present\": " << sub.not_present << ", \"board_seq_skips\": " << sub.board_seq_skips
+     << ", \"raw_lost\": " << sub.raw_lost
+     << "},\n  \"free_running\": " << (free_running ? "true" : "false")
+     << ",\n  \"drift_ppm\": " << (free_running ? drift_ppm : 0.0)
+     << ",\n  \"stress_bursts\": " << bursts.load() << ",\n  \"rss_kib\": {\"first\": " << first_rss
      << ", \"min_after_warmup\": " << rss_min << ", \"max_after_warmup\": " << rss_max
      << ", \"last\": " << last_rss << ", \"hwm\": " << hwm
      << "},\n  \"fds\": {\"at_warmup\": " << fd_start << ", \"min\": " << fd_min

@@ -17,6 +17,11 @@
 #     board number; A sync master, B following A's SYNC), each checked by its
 #     own exodaq-vcan-check (--no-faults: a clean run, its own board's truth,
 #     kernel stamps of its own board's frames, on its own prefix's channels).
+#  5. a free-running board (exodaq-board-sim --free-run, the daemon with
+#     sync_master: false), the daemon held off three times for 0.2 s
+#     (SIGSTOP/SIGCONT) while the board's frames queue in the kernel socket;
+#     the checker asserts every board cycle published once, in order, the
+#     stalls' samples LATE, no MISSING (issue 15).
 set -u
 B=/exodaq/bin
 C=/exodaq/config
@@ -188,4 +193,41 @@ for r in a b; do
   [ $rc -eq 0 ] || fail "rig $r: exodaqd exit code $rc after SIGTERM"
   grep -q "\[vm-rig-$r\]" $W/daemon-$r.log || fail "rig $r: the daemon's log lines do not name it"
 done
+
+# --- 5. a free-running board, the daemon held off ------------------------
+step "free-running board-sim + daemon (sync_master: false), three 0.2 s stalls"
+sed 's/sync_master: true /sync_master: false /' $CFG > $C/vcan-free.yaml
+grep -q "sync_master: false " $C/vcan-free.yaml || fail "cannot set sync_master: false"
+$B/exodaq-vcan-check --config $C/vcan-free.yaml --truth $W/truth-free.txt \
+  --board-log $W/board-free.log --no-faults --free-running --stalls 3 > $W/check-free.log 2>&1 &
+CK=$!
+$B/exodaqd --config $C/vcan-free.yaml --log-level info > $W/daemon-free.log 2>&1 &
+DP=$!
+sleep 1
+$B/exodaq-board-sim --iface vcan0 --config $C/vcan-free.yaml --free-run \
+  --truth $W/truth-free.txt 2> $W/board-free.log &
+BS=$!
+for at in 12 13 14; do  # simulated seconds, after homing
+  while [ "$(wc -l < $W/truth-free.txt 2>/dev/null || echo 0)" -lt $((at * RATE)) ]; do
+    kill -0 $DP 2>/dev/null || { fail "exodaqd died (free-running)"; break; }
+    sleep 0.2
+  done
+  kill -STOP $DP; sleep 0.2; kill -CONT $DP
+done
+while [ "$(wc -l < $W/truth-free.txt 2>/dev/null || echo 0)" -lt $((17 * RATE)) ]; do
+  kill -0 $DP 2>/dev/null || { fail "exodaqd died (free-running)"; break; }
+  sleep 0.5
+done
+kill -0 $DP 2>/dev/null || fail "exodaqd is not running at the end (free-running)"
+kill -TERM $BS; wait $BS
+kill -TERM $CK; wait $CK
+CKRC=$?
+kill -TERM $DP; wait $DP
+DRC=$?
+step "free-running done"
+echo "--- board-sim (free-running) ---"; cat $W/board-free.log
+echo "--- daemon (free-running, last 20 lines) ---"; tail -n 20 $W/daemon-free.log
+echo "--- checker (free-running) ---"; cat $W/check-free.log
+[ $CKRC -eq 0 ] || fail "exodaq-vcan-check (free-running) rc=$CKRC"
+[ $DRC -eq 0 ] || fail "exodaqd (free-running) exit code $DRC after SIGTERM"
 exit $RC

@@ -15,6 +15,11 @@
 //     counters) and every frame cansend injected was counted and flagged;
 //   - the interface down/up was seen (bus_state DOWN, state degraded/fault)
 //     and recovered (bus ACTIVE, state running at the end).
+// --free-running (the board free-runs, the daemon follows it): also every
+// board cycle the board sent is published once, in order (no seq hole, no
+// board cycle skipped beyond kernel drops and the board's own send failures,
+// none repeated), no MISSING while the board runs, and each of the --stalls
+// times the daemon was held off (SIGSTOP) shows as a run of LATE samples.
 // --live-out FILE also writes every received cycle (joint_state_t joined with
 // encoder_raw_t by seq) as text, for the host-side replay comparison
 // (vcan_replay_check.cpp); it does not take part in the checks.
@@ -209,6 +214,69 @@ void check(bool ok, const std::string& what) {
   if (!ok) ++g_failures;
 }
 
+// A free-running board: every board cycle it sent published once, in order.
+void check_free_running(const std::vector<Rec>& recs, const std::vector<Truth>& truth,
+                        const exodaq::status_t& last, std::int64_t holes, std::int64_t rate,
+                        int stalls) {
+  constexpr unsigned kNotSent = 1U << 29;  // truth: the board could not send a frame
+  std::int64_t first_k = -1, prev_k = -1, skips = 0, repeats = 0;
+  std::size_t first_present = recs.size(), last_present = 0;
+  for (std::size_t s = 0; s < recs.size(); ++s) {
+    const Rec& r = recs[s];
+    if (!r.raw || !r.present) continue;
+    first_present = std::min(first_present, s);
+    last_present = s;
+    if (prev_k >= 0) {
+      if (r.k <= prev_k) {
+        ++repeats;
+      } else {
+        skips += r.k - prev_k - 1;
+      }
+    } else {
+      first_k = r.k;
+    }
+    prev_k = r.k;
+  }
+  std::int64_t not_sent = 0;
+  for (const Truth& t : truth) {
+    if (t.k > first_k && t.k < prev_k && (t.faults & kNotSent) != 0) ++not_sent;
+  }
+  // MISSING while the board ran; runs of LATE samples (a stall caught up).
+  std::int64_t missing = 0, late = 0, run = 0, long_runs = 0;
+  const std::int64_t stall_run = std::max<std::int64_t>(2, rate * 15 / 100);  // of a 0.2 s stall
+  for (std::size_t s = 0; s < recs.size(); ++s) {
+    const Rec& r = recs[s];
+    if (s > first_present && s < last_present && r.raw && !r.present) ++missing;
+    if (r.js && (r.sample_flags & 256U) != 0) {
+      ++late;
+      if (++run == stall_run) ++long_runs;
+    } else {
+      run = 0;
+    }
+  }
+  std::printf(
+      "VCAN-CHECK: free-running: board cycles %lld..%lld, %lld skipped (%lld not sent by the "
+      "board, %lld kernel drops), %lld repeated, %lld MISSING while it ran, %lld LATE in %lld "
+      "runs of >= %lld, %lld seq holes, %lld overruns\n",
+      static_cast<long long>(first_k), static_cast<long long>(prev_k),
+      static_cast<long long>(skips), static_cast<long long>(not_sent),
+      static_cast<long long>(last.rx_overflows), static_cast<long long>(repeats),
+      static_cast<long long>(missing), static_cast<long long>(late),
+      static_cast<long long>(long_runs), static_cast<long long>(stall_run),
+      static_cast<long long>(holes), static_cast<long long>(last.overruns));
+  check(holes <= last.publish_failures,
+        "free-running: no seq hole (skipped deadlines caught up, not skipped)");
+  check(repeats == 0, "free-running: no board cycle published twice or out of order");
+  check(skips <= not_sent + last.rx_overflows,
+        "free-running: every board cycle sent was published (" + std::to_string(skips) +
+            " skipped <= " + std::to_string(not_sent) + " not sent + " +
+            std::to_string(last.rx_overflows) + " kernel drops)");
+  check(missing == 0, "free-running: no MISSING sample while the board ran");
+  check(long_runs >= stalls, "free-running: each stall's samples published, LATE (" +
+                                 std::to_string(long_runs) + " runs >= " + std::to_string(stalls) +
+                                 " stalls)");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -218,7 +286,8 @@ int main(int argc, char** argv) {
   int injected_bad = 0, injected_errors = 0;
   // A daemon following another's SYNC has been seen 2 us off (docs/can-protocol.md, VM step 4).
   long long utime_tolerance_us = 1;
-  bool expect_down = false, expect_faults = true;
+  bool expect_down = false, expect_faults = true, free_running = false;
+  int stalls = 0;
   app.add_option("--config", config_path)->required();
   app.add_option("--truth", truth_path)->required();
   app.add_option("--board-log", board_log, "exodaq-board-sim's stderr (BOARD-SIM: counters)");
@@ -234,6 +303,9 @@ int main(int argc, char** argv) {
                  "utime may differ from its frame's kernel stamp by this much (default 1)");
   app.add_option("--live-out", live_out,
                  "also write every received cycle to this file (not checked here)");
+  app.add_flag("--free-running", free_running,
+               "the board free-runs: every board cycle it sent must be published once, in order");
+  app.add_option("--stalls", stalls, "times the daemon was held off for 0.2 s (SIGSTOP/SIGCONT)");
   CLI11_PARSE(app, argc, argv);
 
   const auto cfg = exodaq::config::load_service_config(config_path);
@@ -391,6 +463,10 @@ int main(int argc, char** argv) {
     if (kk < 0 || static_cast<std::size_t>(kk) >= truth.size()) return nullptr;
     return &truth[static_cast<std::size_t>(kk)];
   };
+
+  if (free_running) {
+    check_free_running(rec.recs, truth, last, holes, rate, stalls);
+  }
 
   // --- timestamps and angles ----------------------------------------------
   const double two_pi = 2.0 * std::numbers::pi;

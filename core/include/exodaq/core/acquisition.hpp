@@ -1,9 +1,13 @@
 #pragma once
-// The acquisition loop: a dedicated thread that, cycle after cycle, waits for
+// The acquisition loop: a dedicated thread that, wake after wake, waits for
 // its time base, reads the encoder source, runs the pipeline, publishes the
-// cycle's messages and, at the status rate, the status. After start() a cycle
-// allocates nothing, blocks on nothing and logs nothing: events go through a
-// ring to the main thread. Built by build_acquisition() (builder.hpp).
+// cycle's messages and, at the status rate, the status. A source that holds
+// more samples (a free-running board while the loop was late: backlog()) is
+// read on in the same wake, up to max_samples_per_wake, each sample its own
+// published cycle; one published more than a period after its sample instant
+// is flagged LATE. After start() a wake allocates nothing, blocks on nothing
+// and logs nothing: events go through a ring to the main thread. Built by
+// build_acquisition() (builder.hpp). docs/architecture.md, "One cycle".
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -43,14 +47,19 @@ struct AcquisitionConfig {
   // Benchmarks: record every cycle's wake-up lateness (ns) into memory
   // reserved at start, for up to this many cycles (0: off).
   std::int64_t record_lateness_cycles = 0;
+  // Catch-up bound: samples published in one wake at most (each is three
+  // messages in the publisher's ring of 2048); a longer backlog is carried to
+  // the next wakes (counted in backlog_wakes()).
+  int max_samples_per_wake = 64;
 };
 
 class Acquisition {
  public:
-  // `clock`: null for the system clocks.
+  // `clock`: null for the system clocks; `loop_clock`: null for CLOCK_MONOTONIC.
   Acquisition(AcquisitionConfig config, std::unique_ptr<PipelineConfig> pipeline_config,
               std::unique_ptr<drivers::EncoderSource> source, std::unique_ptr<MessageSink> sink,
-              const std::string& channel_prefix, std::unique_ptr<ClockSource> clock);
+              const std::string& channel_prefix, std::unique_ptr<ClockSource> clock,
+              std::unique_ptr<LoopClock> loop_clock = nullptr);
   ~Acquisition();
   Acquisition(const Acquisition&) = delete;
   Acquisition& operator=(const Acquisition&) = delete;
@@ -88,6 +97,15 @@ class Acquisition {
   ServiceState state() const noexcept { return state_.load(std::memory_order_relaxed); }
   bool finished() const noexcept { return finished_.load(std::memory_order_acquire); }
   std::int64_t overruns() const noexcept { return overruns_.load(std::memory_order_relaxed); }
+  // Samples flagged LATE; samples published after the first of their wake
+  // (caught up); wakes that left a backlog for the next (the catch-up bound).
+  std::int64_t late_samples() const noexcept { return late_.load(std::memory_order_relaxed); }
+  std::int64_t caught_up_samples() const noexcept {
+    return caught_up_.load(std::memory_order_relaxed);
+  }
+  std::int64_t backlog_wakes() const noexcept {
+    return backlog_wakes_.load(std::memory_order_relaxed);
+  }
   std::int64_t run_id() const noexcept { return run_id_; }
   const AcquisitionConfig& config() const noexcept { return config_; }
   const ClockShared& clock_shared() const noexcept { return clock_shared_; }
@@ -97,6 +115,8 @@ class Acquisition {
     std::int64_t missing_samples = 0;
     std::int64_t seq_gaps = 0;
     std::int64_t bus_errors = 0;
+    std::int64_t superseded_samples = 0;
+    std::int64_t late_syncs = 0;
     drivers::BusState bus_state = drivers::BusState::kUnknown;
   };
   SourceCounters source_counters() const noexcept;
@@ -109,17 +129,24 @@ class Acquisition {
   // The recorded wake-up lateness (ns) of each cycle, valid after stop().
   const std::vector<std::int32_t>& lateness_record() const noexcept { return lateness_record_; }
 
-  // One cycle, without the thread (replay, benchmarks, tests drive cycles
-  // themselves). `deadline_ns`/`wake_ns` on CLOCK_MONOTONIC (or a simulated
-  // clock). Returns false at the end of the stream.
+  // One wake, without the thread (replay, benchmarks, tests drive cycles
+  // themselves): the sample for this deadline and any backlog, every sample
+  // taken as published at `wake_ns`. `deadline_ns`/`wake_ns` on
+  // CLOCK_MONOTONIC (or a simulated clock). Returns false at the end of the stream.
   bool run_cycle(std::int64_t deadline_ns, std::int64_t wake_ns) noexcept;
   // Prepares everything run_cycle() needs without starting threads.
   void prepare_for_manual_cycles();
 
  private:
   void thread_main() noexcept;
+  // One wake: read, and read on while the source has a backlog. `clocked`:
+  // each sample's publish time from the loop clock (else `wake_ns`).
+  bool run_wake(std::int64_t deadline_ns, std::int64_t wake_ns, bool clocked) noexcept;
   void apply_staged_reload() noexcept;
-  bool read_sample(std::int64_t deadline_ns, std::int64_t wake_ns) noexcept;
+  drivers::ReadStatus read_sample(const drivers::CycleTime& t) noexcept;
+  // Stamps, tracks, encodes and counts the sample just read as one cycle.
+  void publish_sample(std::int64_t deadline_ns, std::int64_t wake_ns, std::int64_t now_ns,
+                      bool first_of_wake, std::int64_t work_start_ns) noexcept;
   void push_joint_events() noexcept;
   void record_lateness(std::int64_t lateness_ns) noexcept;
   void count_overrun(std::int64_t missed, std::int64_t work_ns) noexcept;
@@ -130,6 +157,7 @@ class Acquisition {
   ConfigHandover configs_;
   std::unique_ptr<drivers::EncoderSource> source_;
   std::unique_ptr<ClockSource> clock_;
+  std::unique_ptr<LoopClock> loop_clock_;
   ClockShared clock_shared_;
   std::unique_ptr<ClockMonitor> clock_monitor_;
   Publisher publisher_;
@@ -147,14 +175,18 @@ class Acquisition {
   std::int64_t last_emitted_mono_ns_ = 0;
   std::int64_t last_present_mono_ns_ = 0;
   std::int64_t last_present_seq_ = 0;
-  bool previous_overran_ = false;
 
   std::atomic<std::int64_t> cycles_{0};
   std::atomic<std::int64_t> overruns_{0};
   std::atomic<std::int64_t> foreign_run_id_{0};
+  std::atomic<std::int64_t> late_{0};
+  std::atomic<std::int64_t> caught_up_{0};
+  std::atomic<std::int64_t> backlog_wakes_{0};
   std::atomic<std::int64_t> published_missing_{0};
   std::atomic<std::int64_t> published_seq_gaps_{0};
   std::atomic<std::int64_t> published_bus_errors_{0};
+  std::atomic<std::int64_t> published_superseded_{0};
+  std::atomic<std::int64_t> published_late_syncs_{0};
   std::atomic<drivers::BusState> published_bus_state_{drivers::BusState::kUnknown};
   std::atomic<ServiceState> state_{ServiceState::kStarting};
   std::atomic<bool> stop_requested_{false};

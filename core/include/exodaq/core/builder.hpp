@@ -19,6 +19,7 @@ struct AcquisitionOptions {
   std::unique_ptr<MessageSink> sink;               // null: LCM on lcm.url
   std::optional<std::string> channel_prefix;       // unset: lcm.prefix
   std::unique_ptr<ClockSource> clock;              // null: the system clocks
+  std::unique_ptr<LoopClock> loop_clock;           // null: CLOCK_MONOTONIC (tests: simulated)
   std::int64_t run_id = 0;                         // 0: random per start
   bool realtime = true;  // false: no CPU pinning, SCHED_FIFO or mlockall (tools, tests)
   std::int64_t record_lateness_cycles = 0;  // AcquisitionConfig::record_lateness_cycles

@@ -55,8 +55,10 @@ class StatusAssembler {
   void use_files(const ConfigFiles& files, std::int32_t reloads) noexcept;
 
   // Every cycle. `clock_hold`: unsynchronised under require_sync: hold.
+  // `new_wake`: false for a sample caught up in the same wake (its timing is
+  // the wake's, counted once).
   void count_cycle(const CycleResult& result, bool present, bool clock_hold,
-                   std::int64_t deadline_ns, std::int64_t wake_ns) noexcept;
+                   std::int64_t deadline_ns, std::int64_t wake_ns, bool new_wake = true) noexcept;
   void count_work(std::int64_t work_ns) noexcept { work_.add(work_ns); }
 
   // Closes the window: returns the next state and assembles message(); the

@@ -12,6 +12,20 @@
 
 namespace exodaq::core {
 
+// The loop's own clock: CLOCK_MONOTONIC now, and sleeping to an absolute
+// deadline. Injectable (AcquisitionOptions::loop_clock), so tests run the live
+// loop on a simulated clock and stall it (a wake that comes late) without a
+// hook in the loop itself.
+class LoopClock {
+ public:
+  virtual ~LoopClock() = default;
+  virtual std::int64_t now_ns() noexcept = 0;
+  virtual void sleep_until(std::int64_t deadline_ns) noexcept = 0;  // absolute, CLOCK_MONOTONIC
+};
+
+// clock_gettime / clock_nanosleep(TIMER_ABSTIME) on CLOCK_MONOTONIC.
+std::unique_ptr<LoopClock> make_monotonic_loop_clock();
+
 // What the time base says about one sample.
 struct SampleTime {
   std::int64_t utime_us = 0;
@@ -28,6 +42,8 @@ class TimeBase {
   // Sleeps until the cycle planned for `deadline_ns` may start; returns the
   // deadline that cycle runs against.
   virtual std::int64_t wait(std::int64_t deadline_ns) noexcept = 0;
+  // The loop clock's now (CLOCK_MONOTONIC, or the injected clock).
+  virtual std::int64_t now() noexcept = 0;
   // Deadlines a cycle ending at `end_ns` overran (`next_deadline_ns` included):
   // skipped, not run. 0 when it ended in time or the time base never skips.
   virtual std::int64_t overrun(std::int64_t end_ns,
@@ -47,8 +63,10 @@ class TimeBase {
 
 class LiveTimeBase final : public TimeBase {
  public:
-  LiveTimeBase(const ClockShared& clock, const ClockPolicy& policy, std::int64_t period_ns);
+  LiveTimeBase(const ClockShared& clock, const ClockPolicy& policy, std::int64_t period_ns,
+               LoopClock& loop_clock);
   std::int64_t wait(std::int64_t deadline_ns) noexcept override;
+  std::int64_t now() noexcept override { return loop_clock_.now_ns(); }
   std::int64_t overrun(std::int64_t end_ns, std::int64_t next_deadline_ns) const noexcept override;
   std::int64_t seq(std::int64_t counted) const noexcept override { return counted; }
   SampleTime stamp(const drivers::EncoderSample& sample) noexcept override;
@@ -63,14 +81,17 @@ class LiveTimeBase final : public TimeBase {
   const ClockShared& clock_;
   ClockPolicy policy_;
   std::int64_t period_ns_;
+  LoopClock& loop_clock_;
   WallTimeMapper mapper_;
 };
 
 class RecordedTimeBase final : public TimeBase {
  public:
   // `speed`: x real time; <= 0 as fast as possible.
-  RecordedTimeBase(const drivers::EncoderSource& source, double speed, const ClockPolicy& policy);
+  RecordedTimeBase(const drivers::EncoderSource& source, double speed, const ClockPolicy& policy,
+                   LoopClock& loop_clock);
   std::int64_t wait(std::int64_t deadline_ns) noexcept override;
+  std::int64_t now() noexcept override { return loop_clock_.now_ns(); }
   std::int64_t overrun(std::int64_t, std::int64_t) const noexcept override { return 0; }
   std::int64_t seq(std::int64_t counted) const noexcept override;
   SampleTime stamp(const drivers::EncoderSample& sample) noexcept override;
@@ -81,6 +102,7 @@ class RecordedTimeBase final : public TimeBase {
   const drivers::EncoderSource& source_;
   double speed_;
   ClockPolicy policy_;
+  LoopClock& loop_clock_;
   std::int64_t first_recorded_ns_ = -1;
   std::int64_t start_ns_ = 0;
 };
@@ -88,6 +110,6 @@ class RecordedTimeBase final : public TimeBase {
 // The recording's time when the source plays one (recording_speed()), else live.
 std::unique_ptr<TimeBase> make_time_base(const drivers::EncoderSource& source,
                                          const ClockShared& clock, const ClockPolicy& policy,
-                                         std::int64_t period_ns);
+                                         std::int64_t period_ns, LoopClock& loop_clock);
 
 }  // namespace exodaq::core

@@ -46,9 +46,22 @@ struct BoardDecoderStats {
 // nothing is lost but the intermediate counts, which unwrapping bridges.
 void merge_superseded(const EncoderSample& older, EncoderSample& newer) noexcept;
 
+// Following a free-running board: it is overdue when the last sample
+// delivered is more than one and a half periods old at `now` (or none came
+// yet). Before that, a wake without a new sample has nothing to publish: the
+// board's clock drifted just past the wake, and the next wake brings two.
+inline bool free_running_board_overdue(std::int64_t last_delivered_mono, std::int64_t now,
+                                       std::int64_t period) noexcept {
+  return last_delivered_mono == 0 || now - last_delivered_mono > period + period / 2;
+}
+
 class BoardDecoder {
  public:
-  static constexpr int kQueueCapacity = 8;
+  // Completed cycles held for the reader. A free-running board's reader takes
+  // them oldest first and drains its socket only while a batch still fits
+  // (the socket is the deep buffer); a reader further behind than this
+  // loses the oldest (queue_overflows).
+  static constexpr int kQueueCapacity = 64;
 
   explicit BoardDecoder(const BoardDecoderConfig& config = {}) noexcept;
 
@@ -62,13 +75,20 @@ class BoardDecoder {
   // Takes the oldest completed cycle. false: none complete.
   bool poll_sample(EncoderSample& out) noexcept;
   // Takes the newest completed cycle; older ones still queued are superseded
-  // (merge_superseded). Returns how many were, or -1 when none is complete.
+  // (merge_superseded, counted in superseded_samples). Returns how many were,
+  // or -1 when none is complete.
   int poll_newest(EncoderSample& out) noexcept;
+  // A reader that merged a sample into a newer one itself (a partial flush).
+  void count_superseded(std::int64_t n) noexcept { stats_.source.superseded_samples += n; }
 
   // Number of completed cycles waiting for poll_sample().
   int queued() const noexcept { return queue_size_; }
   // A cycle with only one half so far (flush() would produce a sample).
   bool has_partial() const noexcept { return pending_.active; }
+  // The receive stamp of the half-assembled cycle's last frame (0: none).
+  std::int64_t partial_mono_ns() const noexcept {
+    return pending_.active ? pending_.sample.mono_ns : 0;
+  }
 
   // At the owner's deadline: closes a half-assembled cycle as kPartial and
   // delivers it (true), or returns false when none is pending. Call after

@@ -66,6 +66,13 @@ struct SourceStats {
   std::int64_t out_of_order = 0;
   std::int64_t bus_errors = 0;
   std::int64_t rx_overflows = 0;
+  // Complete samples a reader replaced by a newer one (poll_newest: sync
+  // master, the aligned sim); 0 with a free-running board, whose every
+  // sample is delivered.
+  std::int64_t superseded_samples = 0;
+  // Sync master: SYNCs sent more than a tenth of a period after their
+  // deadline (a late wake); each such sample is stamped at its true instant.
+  std::int64_t late_syncs = 0;
   BusState bus_state = BusState::kUnknown;
   std::uint32_t board_errors = 0;
 };

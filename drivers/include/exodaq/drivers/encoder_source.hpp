@@ -17,12 +17,20 @@ struct CycleTime {
   std::int64_t now_mono_ns = 0;       // when the loop woke
   std::int64_t period_ns = 1'000'000;
   std::int64_t cycle = 0;  // cycle number since start
+  // A further read in the same wake, for a sample the source still holds
+  // (backlog() > 0): deliver the next one without waiting and without
+  // starting a new board cycle (no SYNC).
+  bool catch_up = false;
 };
 
 enum class ReadStatus : std::uint8_t {
   kSample,       // out holds this cycle's sample (possibly flagged)
   kNoSample,     // nothing this cycle; out.present == false, counts held
   kEndOfStream,  // replay finished
+  // Nothing to publish this wake: a free-running board's next sample is not
+  // overdue yet (its clock drifted just past this wake), or a catch-up read
+  // found nothing more. `out` is untouched; the loop publishes no cycle.
+  kNothingDue,
 };
 
 // Where a live run's joint stood when a recording that starts in the middle
@@ -68,6 +76,20 @@ class EncoderSource {
   // delivered, so a replay keeps the recording's seq across the live run's
   // skipped cycles. -1: none (live sources; the loop counts itself).
   virtual std::int64_t recorded_seq() const noexcept { return -1; }
+
+  // A free-running board: it samples on its own clock and the source keeps
+  // every sample it took until read (the socket queue holds them while the
+  // loop is late). The loop then publishes one cycle per board sample: seq
+  // counts samples, and a deadline the loop skipped is no gap, its sample
+  // comes with the backlog. false: a sample per loop deadline (sync master,
+  // the default sim), a skipped deadline is a sample never taken.
+  virtual bool free_running() const noexcept { return false; }
+
+  // Complete samples the source still holds after the last read() (0: none,
+  // or the source does not queue). The loop reads them in the same wake with
+  // CycleTime::catch_up set. A source may report 1 while more wait behind it
+  // (a socket it has not drained yet).
+  virtual int backlog() const noexcept { return 0; }
 
   // For replay, after start(): where the recorded run's joints stood at the
   // first sample (nullptr: start afresh, as live sources always do).

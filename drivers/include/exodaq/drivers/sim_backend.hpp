@@ -22,8 +22,12 @@ struct SimSourceSettings final : BackendSettings {
   double jitter_us = 0.0;                // sample-instant jitter (uniform, +/-)
   std::uint16_t powerup_count = 0x1234;  // counter value at power-up on every channel
   std::vector<sim::SimFault> faults;     // scripted faults (sim_rig.hpp)
-  std::string motion = "curves";         // "curves" (hand-made) or "task" (the task file)
-  std::string task_path;                 // source.sim.task, relative to the config
+  // source.sim.board_clock: {free_running, drift_ppm, phase} (phase in periods, [0, 1))
+  bool free_running = false;
+  double drift_ppm = 0.0;
+  double phase = 0.0;
+  std::string motion = "curves";                 // "curves" (hand-made) or "task" (the task file)
+  std::string task_path;                         // source.sim.task, relative to the config
   std::shared_ptr<const sim::SimTaskFile> task;  // parsed when task_path is given
   std::string describe() const override;
 };

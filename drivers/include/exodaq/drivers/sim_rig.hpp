@@ -306,12 +306,25 @@ constexpr std::uint32_t fault_bit(SimFault::Kind kind) noexcept {
 inline constexpr std::uint32_t kRandomLossBit = 1U << 30;
 inline constexpr std::uint32_t kRandomPartialBit = 1U << 31;
 
+// The board's sampling clock (docs/simulator.md, "Board clock").
+struct SimBoardClock {
+  // false: the board samples at the reader's deadlines, as a sync slave whose
+  // SYNC leaves on time (the default). true: it samples on its own clock
+  // whatever the reader does, and a reader that is late finds the cycles it
+  // missed queued, as in a socket.
+  bool free_running = false;
+  double drift_ppm = 0.0;     // own period = period · (1 + drift_ppm · 1e-6); |drift| ≤ 1000
+  std::int64_t phase_ns = 0;  // first sample this long after the start, [0, period)
+};
+
 struct SimOptions {
   std::uint64_t seed = 1;              // seeds motion, jitter, loss; same seed → same stream
   std::int64_t period_ns = 1'000'000;  // sampling period (1 kHz)
   // Sample k is taken at t_k = k · period_ns + jitter_k, jitter_k uniform in
   // [−jitter_ns, +jitter_ns] from (seed, k); clamped below period_ns / 2.
+  // A free-running board: t_k = phase + k · period_ns · (1 + drift) + jitter_k.
   std::int64_t jitter_ns = 0;
+  SimBoardClock board_clock{};
   double loss_percent = 0.0;     // cycles whose frames are all lost on the bus (from (seed, k))
   double partial_percent = 0.0;  // cycles whose COUNTS_B is lost (only A arrives)
   std::array<SimEncoderParams, kJoints> encoders = default_encoders();

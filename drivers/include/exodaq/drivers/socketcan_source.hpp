@@ -3,14 +3,22 @@
 // board on a CAN interface (can0 on the rig, vcan0 in tests), decoded by the
 // same BoardDecoder the sim backend uses. The socket and the clocks sit behind
 // CanPort (can_port.hpp) so tests drive this class with an in-memory port.
-// One read() per loop cycle at its deadline: re-open a lost port (at most once
-// per reopen_interval_ns, non-blocking), send SYNC as sync master, receive and
-// wait until the cycle is complete or the poll deadline (deadline +
-// read_deadline_ns, never past the cycle's end minus a tenth), deliver the
-// newest complete cycle (older ones superseded), flush a lone half as PARTIAL,
-// else MISSING. Samples carry the kernel receive stamps. read() allocates
-// nothing. The whole behaviour (time stamps, interface loss and recovery):
-// docs/can-protocol.md ("The socketcan backend").
+// One read() per loop wake: re-open a lost port (at most once per
+// reopen_interval_ns, non-blocking), then
+// - sync master: send SYNC (counted late when it leaves more than a tenth of
+//   a period after the deadline), receive and wait until the answer is
+//   complete or the poll deadline (deadline + read_deadline_ns, never past
+//   the cycle's end minus a tenth; from the SYNC on when it was late), deliver the
+//   newest complete cycle (older ones superseded), flush a lone half as
+//   PARTIAL, else MISSING;
+// - following a free-running board: deliver every complete cycle, oldest
+//   first, one per read (backlog() says more wait; the socket is drained only
+//   while the decoder has room, so it stays the deep buffer), waiting up to the
+//   poll deadline only when none is there; MISSING only once the board is
+//   overdue, else nothing this wake.
+// Samples carry the kernel receive stamps. read() allocates nothing. The whole
+// behaviour (time stamps, interface loss and recovery): docs/can-protocol.md
+// ("The socketcan backend").
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -36,6 +44,7 @@ struct SocketCanDetail {
   std::int64_t sync_sent = 0;
   std::int64_t sync_send_failures = 0;  // EAGAIN / ENOBUFS / other send errors while up
   std::int64_t superseded_samples = 0;  // complete cycles replaced by a newer one
+  std::int64_t late_syncs = 0;  // SYNCs sent more than a tenth of a period after the deadline
   std::int64_t partial_flushes = 0;
   std::int64_t unstamped_frames = 0;  // no kernel timestamp: stamped with the read time
   std::int64_t interface_losses = 0;  // transitions to kDown
@@ -57,7 +66,13 @@ class SocketCanSource final : public EncoderSource {
   // it). Other failures (no CAN support in the kernel: EAFNOSUPPORT) throw.
   void start() override;
   ReadStatus read(const CycleTime& time, EncoderSample& out) noexcept override;
-  SourceStats stats() const noexcept override { return decoder_.stats(); }
+  SourceStats stats() const noexcept override {
+    SourceStats s = decoder_.stats();
+    s.late_syncs = detail_.late_syncs;
+    return s;
+  }
+  bool free_running() const noexcept override { return !config_.sync_master; }
+  int backlog() const noexcept override;
   void stop() noexcept override;
 
   const BoardDecoder& decoder() const noexcept { return decoder_; }
@@ -66,6 +81,9 @@ class SocketCanSource final : public EncoderSource {
 
  private:
   static constexpr int kBatch = 32;
+  // Following a free-running board, receive only while a whole batch of
+  // cycles (at most kBatch / 2) still fits the decoder's queue.
+  static constexpr int kRefillBelow = BoardDecoder::kQueueCapacity - kBatch / 2;
 
   void measure_offset() noexcept;
   bool try_open(std::int64_t now_mono) noexcept;
@@ -80,6 +98,9 @@ class SocketCanSource final : public EncoderSource {
   // Closes a lone half as PARTIAL when it is due; true when `out` holds a sample.
   bool flush_partial(bool got, std::int64_t sync_mono, std::int64_t period,
                      EncoderSample& out) noexcept;
+  ReadStatus read_sync_master(const CycleTime& time, std::int64_t now, EncoderSample& out) noexcept;
+  ReadStatus read_free_running(const CycleTime& time, std::int64_t poll_deadline,
+                               EncoderSample& out) noexcept;
 
   SocketCanSourceConfig config_;
   std::unique_ptr<CanPort> port_;
@@ -94,6 +115,8 @@ class SocketCanSource final : public EncoderSource {
   bool offset_valid_ = false;
   std::int64_t newest_complete_mono_ = 0;  // stamp of the frame that last completed a cycle
   std::int64_t partial_since_mono_ = 0;    // stamp of the half now pending
+  bool socket_may_hold_more_ = false;      // the last drain stopped for room, not for empty
+  std::int64_t last_delivered_mono_ = 0;   // free-running: stamp of the last sample delivered
 };
 
 }  // namespace exodaq::drivers
