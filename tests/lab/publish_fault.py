@@ -51,7 +51,7 @@ from run_lab import RECEIVE_URL, PUBLISH_URL, Checks, wait_line, write_config  #
 
 ROUTE = ["224.0.0.0/4", "dev", "eth0"]
 STATE_NAMES = {0: "starting", 1: "homing", 2: "running", 3: "degraded", 4: "fault", 5: "stopping"}
-LINE = re.compile(r"^(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3}) (\w+) (.*)$")
+LINE = re.compile(r"^(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3}) (?:\[[^]]*\] )?(\w+) (.*)$")  # [rig] since issue 19.2
 
 
 def log_lines(path):

@@ -168,6 +168,8 @@ def read_lcm_log(path):
         channel = data[i:i + clen].decode("utf-8", "replace")
         payload = data[i + clen:i + clen + dlen]
         i += clen + dlen
+        if channel == "LCM_SELF_TEST":  # stock LCM: every udpm subscriber sends one at start
+            continue
         if len(payload) >= 32:
             seqs.setdefault(channel, []).append(struct.unpack_from(">q", payload, 24)[0])
         else:
