@@ -576,8 +576,7 @@ int main(int argc, char** argv) {
       "held at the previous cycle's utime (stamped before it, delivered after it)\n",
       static_cast<long long>(present), static_cast<long long>(stamp_found),
       static_cast<long long>(stamp_seq_ok), static_cast<long long>(utime_exact),
-      static_cast<long long>(utime_1us), utime_tolerance_us,
-      static_cast<long long>(utime_held));
+      static_cast<long long>(utime_1us), utime_tolerance_us, static_cast<long long>(utime_held));
   check(present > 4 * rate, "more than 4 s of samples delivered");
   check(stamp_seq_ok == present,
         "every delivered sample carries the kernel RX timestamp of a COUNTS frame of its seq");
