@@ -187,8 +187,8 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, const WindowEnd& 
   }
   if (s.foreign_run_id != 0 && n > 0 && n < static_cast<int>(sizeof(text))) {
     n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
-                  "; ANOTHER RUN %016llx on these channels",
-                  static_cast<unsigned long long>(s.foreign_run_id));
+                       "; ANOTHER RUN %016llx on these channels",
+                       static_cast<unsigned long long>(s.foreign_run_id));
   }
   append_publish_text(text, n, static_cast<int>(sizeof(text)), state, end);
   s.message.assign(text);
