@@ -83,8 +83,10 @@ class ReplayLive : public ::testing::Test {
         Process daemon({EXODAQD, "--config", live->config}, live->dir + "/exodaqd.out",
                        live->dir + "/exodaqd.err");
         // Long enough for the sim's homing sweeps of all six joints (~10 s)
-        // and a few reaches after.
-        std::this_thread::sleep_for(std::chrono::seconds(14));
+        // and a few reaches after, with room for the daemon's start-up (its
+        // 250 ms listening for another publisher) before the last excerpt
+        // (to 13.7 s) and the calibration markers (all joints homed).
+        std::this_thread::sleep_for(std::chrono::seconds(16));
         daemon.signal(SIGINT);
         const auto code = daemon.wait(std::chrono::seconds(10));
         ASSERT_TRUE(code.has_value());
