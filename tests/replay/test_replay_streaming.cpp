@@ -375,6 +375,11 @@ TEST(ReplayStreaming, MemoryDoesNotGrowWithTheRecording) {
   // 300 000 cycles (5 minutes at 1 kHz, 41 MB): loaded whole, the samples
   // alone took 80 bytes each, 24 MB. Streamed: the ring (640 KiB), the
   // reader's buffer and thread, whatever the length.
+#if defined(__SANITIZE_ADDRESS__)
+  // ASan's quarantine holds freed memory back (8 MiB here in one run): the
+  // peak RSS says nothing about the replay; the plain build checks it.
+  GTEST_SKIP() << "peak RSS is not the replay's under AddressSanitizer";
+#endif
   constexpr std::int64_t kCycles = 300'000;
   const std::string dir = test::make_temp_dir("replay-stream");
   const std::string path = write_long_lcm(dir, kCycles);

@@ -544,12 +544,14 @@ TEST_F(ReplayLive, ExportOfADamagedLogNamesTheBytesAndKeepsEveryGoodEvent) {
   const auto ref_rows = read_csv(reference);
 
   const std::string tail = g_live->dir + "/garbage-appended.lcm";
-  write_text(tail, good + std::string("\xde\xad\xbe\xef garbage after the last event", 35));
+  const std::string garbage = "\xde\xad\xbe\xef garbage after the last event";
+  write_text(tail, good + garbage);
   const std::string tail_csv = g_live->dir + "/garbage-appended.csv";
   RunResult r = exodaq({"export", tail, "-o", tail_csv});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   const std::string range = "bytes " + std::to_string(good.size()) + ".." +
-                            std::to_string(good.size() + 35) + ": damaged or cut at the end";
+                            std::to_string(good.size() + garbage.size()) +
+                            ": damaged or cut at the end";
   EXPECT_NE(r.err.find("exodaq export: " + tail + ", " + range), std::string::npos) << r.err;
   EXPECT_EQ(read_text(tail_csv), read_text(reference));  // every good event kept
 
