@@ -15,6 +15,7 @@
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
+#include "exodaq/core/udpm_receiver.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/message.hpp"
 #include "exodaq/messages/subscriber.hpp"
@@ -139,12 +140,25 @@ int startup_listen_ms(double status_rate_hz) {
 }
 
 ForeignRunListener::ForeignRunListener(const std::string& url, const std::string& prefix)
-    : channel_(msg::channel_name(prefix, msg::Kind::kStatus)),
-      sub_(std::make_unique<msg::Subscriber>(url)) {
+    : channel_(msg::channel_name(prefix, msg::Kind::kStatus)) {
+  if (const auto address = core::parse_udpm_url(url)) {
+    udpm_ = std::make_unique<core::UdpmChannelReceiver>(*address, url, channel_);
+    return;
+  }
+  sub_ = std::make_unique<msg::Subscriber>(url);
   sub_->subscribe(channel_, msg::Kind::kStatus, [this](const msg::Received& r) {
     const auto& st = std::get<status_t>(r.msg);
     on_status(st.run_id, st.rig);
   });
+}
+
+// Waits up to timeout_ms and handles what arrived. < 0: the transport failed.
+int ForeignRunListener::handle(int timeout_ms) {
+  if (!udpm_) return sub_->handle(timeout_ms);
+  const int size = udpm_->receive(timeout_ms);
+  if (size <= 0) return size;
+  if (status_.decode(udpm_->payload(), 0, size) >= 0) on_status(status_.run_id, status_.rig);
+  return 1;
 }
 
 ForeignRunListener::~ForeignRunListener() {
@@ -154,7 +168,7 @@ ForeignRunListener::~ForeignRunListener() {
 std::optional<ForeignRunListener::Heard> ForeignRunListener::listen_before_start(int window_ms) {
   const std::int64_t end = mono_now_ns() + std::int64_t{window_ms} * 1'000'000;
   for (std::int64_t now = mono_now_ns(); now < end && !first_heard_; now = mono_now_ns()) {
-    sub_->handle(static_cast<int>(std::max<std::int64_t>(1, (end - now) / 1'000'000)));
+    handle(static_cast<int>(std::max<std::int64_t>(1, (end - now) / 1'000'000)));
   }
   return first_heard_;
 }
@@ -173,7 +187,7 @@ void ForeignRunListener::watch_loop() noexcept {
   pthread_setname_np(pthread_self(), "exodaq-foreign");
   while (!stopping_.load()) {
     try {
-      if (sub_->handle(100) < 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (handle(100) < 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
       end_episode_if_quiet();
     } catch (const std::exception& e) {
       spdlog::error("status listener: {}", e.what());

@@ -23,6 +23,7 @@
 #include "alloc_counter.hpp"
 #include "exodaq/core/message_encoder.hpp"
 #include "exodaq/core/publisher.hpp"
+#include "exodaq/core/udpm_receiver.hpp"
 #include "exodaq/core/udpm_sender.hpp"
 
 using namespace exodaq;
@@ -345,4 +346,31 @@ TEST(Publisher, AnUdpmUrlIsSentFromTheLoopToStockLcm) {
   EXPECT_EQ(palm.run_id, 5);
   EXPECT_EQ(publisher.published(), 3);
   EXPECT_EQ(publisher.failures(), 0);
+}
+
+// The status listener's socket: the kernel passes exactly the channel's LC02
+// datagrams (not another channel, not a longer name sharing its start, not a
+// prefixed one), so the daemon's listener is not woken for the cycle messages.
+TEST(UdpmChannelReceiver, TheKernelPassesOnlyTheChannel) {
+  const int port = own_port(5);
+  const auto address = core::parse_udpm_url(url_on(port));
+  ASSERT_TRUE(address.has_value());
+  core::UdpmChannelReceiver receiver(*address, url_on(port), "PEXO_STATUS");
+  core::UdpmSender sender(*address, url_on(port));
+  const std::uint8_t other[] = {1, 2, 3, 4};
+  for (int k = 0; k < 50; ++k) {
+    ASSERT_EQ(sender.send("PEXO_JOINT_STATE", other, sizeof other), 0);
+    ASSERT_EQ(sender.send("PEXO_STATUSX", other, sizeof other), 0);
+    ASSERT_EQ(sender.send("XPEXO_STATUS", other, sizeof other), 0);
+    ASSERT_EQ(sender.send("PEXO_STATU", other, sizeof other), 0);
+  }
+  const std::uint8_t status[] = {9, 8, 7};
+  ASSERT_EQ(sender.send("PEXO_STATUS", status, sizeof status), 0);
+  int size = 0;
+  for (int tries = 0; tries < 20 && size == 0; ++tries) size = receiver.receive(100);
+  ASSERT_EQ(size, 3);
+  EXPECT_EQ(std::vector<std::uint8_t>(receiver.payload(), receiver.payload() + 3),
+            std::vector<std::uint8_t>({9, 8, 7}));
+  EXPECT_EQ(receiver.receive(50), 0);  // nothing else queued
+  EXPECT_EQ(receiver.datagrams(), 1);  // 200 others dropped by the filter
 }

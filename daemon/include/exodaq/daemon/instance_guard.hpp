@@ -19,12 +19,15 @@
 #include <string>
 #include <thread>
 
+#include "exodaq/status_t.hpp"
+
 namespace exodaq::msg {
 class Subscriber;
 }
 namespace exodaq::core {
 class Acquisition;
-}
+class UdpmChannelReceiver;
+}  // namespace exodaq::core
 namespace exodaq::config {
 struct ServiceConfig;
 }
@@ -102,12 +105,17 @@ class ForeignRunListener {
   void stop() noexcept;
 
  private:
+  int handle(int timeout_ms);
   void on_status(std::int64_t run_id, const std::string& rig);
   void watch_loop() noexcept;
   void end_episode_if_quiet();
 
   std::string channel_;
+  // udpm:// : a socket that the kernel wakes only for the status channel
+  // (udpm_receiver.hpp); any other URL: an LCM subscription.
+  std::unique_ptr<core::UdpmChannelReceiver> udpm_;
   std::unique_ptr<msg::Subscriber> sub_;
+  status_t status_;                   // decoded into, on the listening thread
   core::Acquisition* acq_ = nullptr;  // null before watch(): start-up window
   std::optional<Heard> first_heard_;
   std::int64_t episode_run_id_ = 0;  // 0: no episode
