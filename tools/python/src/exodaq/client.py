@@ -16,10 +16,9 @@ import io
 import math
 import struct
 import sys
-import time
 
 from . import names
-from .udpm import DEFAULT_URL, Receiver
+from .udpm import DEFAULT_URL, Receiver, take
 
 Message = collections.namedtuple("Message", "channel kind msg")
 Message.__doc__ = """A received message: its channel, its kind's short name
@@ -158,15 +157,7 @@ class Subscriber:
 
     def messages(self, count=None, timeout=None):
         """Yields Messages until `count` of them or `timeout` s in total (None: no limit)."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        n = 0
-        while count is None or n < count:
-            left = None if deadline is None else max(0.0, deadline - time.monotonic())
-            m = self.recv(left)
-            if m is None:
-                return
-            n += 1
-            yield m
+        return take(self.recv, count, timeout)
 
 
 def _summary(channel, msg):
