@@ -6,7 +6,6 @@
 #include <cerrno>
 
 namespace exodaq::board_sim {
-namespace {
 
 void sleep_until(std::int64_t mono_ns) noexcept {
   const timespec ts{static_cast<time_t>(mono_ns / 1'000'000'000),
@@ -18,8 +17,6 @@ void sleep_until(std::int64_t mono_ns) noexcept {
 bool interface_gone(int err) noexcept {
   return err == -ENETDOWN || err == -ENODEV || err == -ENXIO || err == -EBADF;
 }
-
-}  // namespace
 
 void write_truth_header(std::FILE* truth) {
   std::fprintf(truth, "# k seq t_s q0 q1 q2 q3 q4 q5 c0 c1 c2 c3 c4 c5 fault_bits\n");

@@ -4,11 +4,8 @@
 // the cycle's frames or free-runs at the config's rate; faults come from the
 // config's source.sim.faults and --fault, in the one vocabulary of the sim
 // backend. docs/can-protocol.md ("Board simulator"), docs/simulator.md.
-#include <time.h>
-
 #include <CLI/CLI.hpp>
 #include <atomic>
-#include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <exception>
@@ -27,6 +24,7 @@ namespace {
 namespace can = exodaq::drivers::can;
 namespace sim = exodaq::drivers::sim;
 using exodaq::board_sim::BoardSim;
+using exodaq::board_sim::sleep_until;
 using exodaq::drivers::CanPort;
 
 std::atomic<bool> g_stop{false};
@@ -106,11 +104,6 @@ class Link {
   std::int64_t last_try_ = 0;
 };
 
-void sleep_ns(std::int64_t ns) {
-  const timespec d{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
-  clock_nanosleep(CLOCK_MONOTONIC, 0, &d, nullptr);
-}
-
 // Waits up to 100 ms for SYNC frames; returns how many arrived (the port is
 // closed when the interface went away).
 int receive_syncs(CanPort& port, const can::ProtocolIds& ids) {
@@ -119,7 +112,7 @@ int receive_syncs(CanPort& port, const can::ProtocolIds& ids) {
   std::array<can::CanFrame, 32> rx{};
   exodaq::drivers::CanRxInfo info;
   const int n = port.receive(rx.data(), static_cast<int>(rx.size()), info);
-  if (n == -ENETDOWN || n == -ENODEV || n == -ENXIO) port.close();
+  if (exodaq::board_sim::interface_gone(n)) port.close();
   int syncs = 0;
   for (int i = 0; i < n; ++i) {
     const can::CanFrame& f = rx[static_cast<std::size_t>(i)];
@@ -136,14 +129,13 @@ void run(const Cli& cli, const sim::SimOptions& options, CanPort& port, BoardSim
   std::int64_t k = 0;
   while (!g_stop.load() && port.now_mono_ns() < end) {
     if (cli.free_run) {  // absolute deadlines: start + k * period
-      const std::int64_t deadline = start + k * options.period_ns;
-      if (deadline > port.now_mono_ns()) sleep_ns(deadline - port.now_mono_ns());
+      sleep_until(start + k * options.period_ns);
       link.up();
       board.cycle(k++, start);
       continue;
     }
     if (!link.up()) {
-      sleep_ns(50'000'000);
+      sleep_until(port.now_mono_ns() + 50'000'000);
       continue;
     }
     for (int s = receive_syncs(port, options.board.ids); s > 0; --s) {

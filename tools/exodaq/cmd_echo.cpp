@@ -21,6 +21,7 @@
 #include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/subscriber.hpp"
+#include "live_rig.hpp"
 #include "rate_meter.hpp"
 
 namespace exodaq::tools {
@@ -42,16 +43,11 @@ void install_stop_handlers() {
 
 struct EchoOptions {
   std::string channel = "joint_state";
-  std::string config;
+  LiveRig rig;
   std::string out = "-";
   bool csv = false;
-  std::string prefix;
-  bool prefix_given = false;
-  std::string url = msg::kDefaultUrl;
-  bool url_given = false;
-  std::optional<config::RequireSync> clock_policy;  // from --config
-  int64_t count = 0;                                // 0: no limit
-  double duration = 0.0;                            // s, 0: no limit
+  int64_t count = 0;      // 0: no limit
+  double duration = 0.0;  // s, 0: no limit
 };
 
 constexpr double kRadToDeg = 180.0 / std::numbers::pi;
@@ -85,12 +81,12 @@ class Table {
     std::vector<std::string> lines;
     char buf[256];
     // The rig's name comes with its status (10 Hz): until then, only the prefix.
-    std::snprintf(buf, sizeof buf, "exodaq echo  %s  prefix '%s'  rig %s", opt_.url.c_str(),
-                  opt_.prefix.c_str(), status_ ? ("'" + status_->rig + "'").c_str() : "?");
+    std::snprintf(buf, sizeof buf, "exodaq echo  %s  prefix '%s'  rig %s", opt_.rig.url.c_str(),
+                  opt_.rig.prefix.c_str(), status_ ? ("'" + status_->rig + "'").c_str() : "?");
     lines.emplace_back(buf);
     if (!joint_) {
-      lines.emplace_back("waiting for " + msg::channel_name(opt_.prefix, msg::Kind::kJointState) +
-                         " ...");
+      lines.emplace_back("waiting for " +
+                         msg::channel_name(opt_.rig.prefix, msg::Kind::kJointState) + " ...");
     } else {
       const auto& j = *joint_;
       const auto rate = meter_.rate_hz();
@@ -122,7 +118,7 @@ class Table {
       lines.emplace_back(buf);
     } else {
       lines.emplace_back("palm     waiting for " +
-                         msg::channel_name(opt_.prefix, msg::Kind::kPalmPose));
+                         msg::channel_name(opt_.rig.prefix, msg::Kind::kPalmPose));
     }
     if (raw_) {
       const auto& e = *raw_;
@@ -138,15 +134,15 @@ class Table {
       std::snprintf(buf, sizeof buf, "status   %s  \"%.60s\"  overruns %lld  clock %s  bus %s%s",
                     std::string(msg::state_name(s.state)).c_str(), s.message.c_str(),
                     static_cast<long long>(s.overruns),
-                    s.clock_synchronised                                ? "synced"
-                    : opt_.clock_policy == config::RequireSync::kIgnore ? "unsynced (ignored)"
-                                                                        : "UNSYNCED",
+                    s.clock_synchronised                                    ? "synced"
+                    : opt_.rig.clock_policy == config::RequireSync::kIgnore ? "unsynced (ignored)"
+                                                                            : "UNSYNCED",
                     std::string(msg::bus_state_name(s.bus_state)).c_str(),
                     age_s > 1.0 ? fmt("  (stale %.0f s)", age_s).c_str() : "");
       lines.emplace_back(buf);
     } else {
       lines.emplace_back("status   waiting for " +
-                         msg::channel_name(opt_.prefix, msg::Kind::kStatus));
+                         msg::channel_name(opt_.rig.prefix, msg::Kind::kStatus));
     }
 
     std::string out;
@@ -234,7 +230,7 @@ void subscribe(EchoRun& run, msg::Subscriber& subscriber) {
     return;
   }
   std::vector<std::string> channels;
-  for (auto k : msg::kAllKinds) channels.push_back(msg::channel_name(run.opt.prefix, k));
+  for (auto k : msg::kAllKinds) channels.push_back(msg::channel_name(run.opt.rig.prefix, k));
   if (!run.kind) channels.push_back(run.channel);
   for (const auto& c : channels) {
     subscriber.subscribe(c, std::nullopt, [&run, c](const msg::Received& r) {
@@ -290,19 +286,14 @@ int echo_loop(EchoRun& run, msg::Subscriber& subscriber) {
 }
 
 int run_echo(EchoOptions opt) {
-  if (!opt.config.empty()) {
-    const config::ServiceConfig cfg = config::load_service_config(opt.config);
-    if (!opt.url_given) opt.url = cfg.lcm.url;
-    if (!opt.prefix_given) opt.prefix = cfg.lcm.prefix;
-    opt.clock_policy = cfg.clock.require_sync;
-  }
+  resolve_live_rig(opt.rig);
   EchoRun run(opt);
   run.csv = opt.csv || opt.out != "-" || !isatty(STDOUT_FILENO);
   run.kind = msg::parse_kind(opt.channel);
   // A name we do not know is a literal channel; its type comes from the payload.
-  run.channel = run.kind ? msg::channel_name(opt.prefix, *run.kind) : opt.channel;
+  run.channel = run.kind ? msg::channel_name(opt.rig.prefix, *run.kind) : opt.channel;
   if (run.csv) run.csv_out.emplace(opt.out, run.kind);
-  msg::Subscriber subscriber(opt.url);
+  msg::Subscriber subscriber(opt.rig.url);
   install_stop_handlers();
   subscribe(run, subscriber);
   subscriber.on_mixed_runs([&run](const msg::RunMix& mix) {
@@ -317,8 +308,8 @@ int run_echo(EchoOptions opt) {
     return kExitFailure;
   }
   if (common_options().verbose) {
-    print_error(std::to_string(run.received) + " messages on " + run.channel + " from " + opt.url +
-                ", " + std::to_string(subscriber.undecodable()) + " undecodable");
+    print_error(std::to_string(run.received) + " messages on " + run.channel + " from " +
+                opt.rig.url + ", " + std::to_string(subscriber.undecodable()) + " undecodable");
   }
   if (run.csv) {
     run.csv_out->commit();  // throws FileError with the reason
@@ -336,17 +327,11 @@ std::function<int()> setup_echo(CLI::App& app) {
                  "joint_state, palm_pose, encoder_raw or status (or EXO_* names; the prefix is "
                  "added), or any other literal channel name")
       ->capture_default_str();
-  app.add_option("-c,--config", opt->config,
-                 "the daemon's service config: LCM URL and prefix from it");
+  add_live_rig_options(app, opt->rig);
   app.add_option("-o,--out", opt->out,
                  "CSV to this file (written when echo ends), - for standard output")
       ->capture_default_str();
   app.add_flag("--csv", opt->csv, "CSV lines even on a terminal (the default when piped)");
-  add_prefix_option(app, opt->prefix, "default: the config's, else none")
-      ->each([opt](const std::string&) { opt->prefix_given = true; });
-  app.add_option("--url,-u", opt->url, "LCM URL")
-      ->capture_default_str()
-      ->each([opt](const std::string&) { opt->url_given = true; });
   app.add_option("--count,-n", opt->count, "stop after N messages of the channel (0: no limit)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--duration,-d", opt->duration,

@@ -16,19 +16,15 @@
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/subscriber.hpp"
 #include "json_out.hpp"
+#include "live_rig.hpp"
 
 namespace exodaq::tools {
 namespace {
 
 struct StatusOptions {
-  std::string config;
-  std::string prefix;
-  bool prefix_given = false;
-  std::string url = msg::kDefaultUrl;
-  bool url_given = false;
+  LiveRig rig;
   double timeout = 3.0;  // s; status comes at 10 Hz
   bool json = false;
-  std::optional<config::RequireSync> clock_policy;  // from --config
 };
 
 std::string utc_time(int64_t utime) {
@@ -78,7 +74,8 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
   std::printf(
       "clock    %s  est error %s  max error %s  offset %.1f us  utime correction %.1f us  steps "
       "%lld\n",
-      clock_state_text(s, o.clock_policy).c_str(), clock_error_text(s.clock_est_error_us).c_str(),
+      clock_state_text(s, o.rig.clock_policy).c_str(),
+      clock_error_text(s.clock_est_error_us).c_str(),
       clock_error_text(s.clock_max_error_us).c_str(), s.clock_offset_us, s.utime_correction_us,
       ll(s.clock_steps));
   std::printf("config   %s  sha256 %s  reloads %d\n", s.config_path.c_str(),
@@ -125,14 +122,9 @@ void print_json(const std::string& channel, const status_t& s) {
 constexpr int64_t kMixWatchNs = 250'000'000;
 
 int run_status(StatusOptions opt) {
-  if (!opt.config.empty()) {
-    const config::ServiceConfig cfg = config::load_service_config(opt.config);
-    if (!opt.url_given) opt.url = cfg.lcm.url;
-    if (!opt.prefix_given) opt.prefix = cfg.lcm.prefix;
-    opt.clock_policy = cfg.clock.require_sync;
-  }
-  const std::string channel = msg::channel_name(opt.prefix, msg::Kind::kStatus);
-  msg::Subscriber subscriber(opt.url);
+  resolve_live_rig(opt.rig);
+  const std::string channel = msg::channel_name(opt.rig.prefix, msg::Kind::kStatus);
+  msg::Subscriber subscriber(opt.rig.url);
   std::optional<msg::Received> got;
   subscriber.subscribe(channel, msg::Kind::kStatus, [&](const msg::Received& r) {
     if (!got) got = r;
@@ -156,7 +148,7 @@ int run_status(StatusOptions opt) {
     }
   }
   if (!got) {
-    print_error("no " + channel + " message on " + opt.url + " within " +
+    print_error("no " + channel + " message on " + opt.rig.url + " within " +
                 msg::csv::number(opt.timeout) +
                 " s (is exodaqd running, with this prefix and URL?)");
     return kExitFailure;
@@ -171,13 +163,7 @@ int run_status(StatusOptions opt) {
 
 std::function<int()> setup_status(CLI::App& app) {
   auto opt = std::make_shared<StatusOptions>();
-  app.add_option("-c,--config", opt->config,
-                 "the daemon's service config: LCM URL, prefix and clock policy from it");
-  add_prefix_option(app, opt->prefix, "default: the config's, else none")
-      ->each([opt](const std::string&) { opt->prefix_given = true; });
-  app.add_option("--url,-u", opt->url, "LCM URL")
-      ->capture_default_str()
-      ->each([opt](const std::string&) { opt->url_given = true; });
+  add_live_rig_options(app, opt->rig);
   app.add_flag("--json", opt->json, "print the status as one JSON object");
   app.add_option("--timeout,-t", opt->timeout, "seconds to wait for a status message")
       ->capture_default_str()

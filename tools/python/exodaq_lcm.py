@@ -47,7 +47,7 @@ def __getattr__(name):  # the constants, from the package on first use
 
 
 def Receiver(url=None, channels=None, prefix=None, recv_buf_size=None):
-    """exodaq.Receiver; with channels=None and a prefix, the four exodaq channels of that rig."""
+    """exodaq.Receiver; with channels=None and a prefix, every exodaq channel of that rig."""
     exodaq = import_types()
     if channels is None and prefix is not None:
         channels = [prefix + c for c in exodaq.BASE_CHANNELS]

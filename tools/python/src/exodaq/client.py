@@ -16,14 +16,13 @@ import io
 import math
 import struct
 import sys
-import time
 
 from . import names
-from .udpm import DEFAULT_URL, Receiver
+from .udpm import DEFAULT_URL, Receiver, take
 
 Message = collections.namedtuple("Message", "channel kind msg")
 Message.__doc__ = """A received message: its channel, its kind's short name
-("joint_state", "palm_pose", "encoder_raw", "status") and the decoded object
+("joint_state", "palm_pose", "encoder_raw", "status", "homing") and the decoded object
 (exodaq.joint_state_t, ...; every array field a list)."""
 
 DEFAULT_KINDS = ("joint_state", "palm_pose", "status")
@@ -158,15 +157,7 @@ class Subscriber:
 
     def messages(self, count=None, timeout=None):
         """Yields Messages until `count` of them or `timeout` s in total (None: no limit)."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        n = 0
-        while count is None or n < count:
-            left = None if deadline is None else max(0.0, deadline - time.monotonic())
-            m = self.recv(left)
-            if m is None:
-                return
-            n += 1
-            yield m
+        return take(self.recv, count, timeout)
 
 
 def _summary(channel, msg):
@@ -197,8 +188,8 @@ def main(argv=None):
                                  description="Print exodaq LCM messages (no LCM module needed).")
     ap.add_argument("--url", default=DEFAULT_URL, help="LCM URL (udpm:// only)")
     ap.add_argument("--prefix", default="", help="rig channel prefix (config lcm.prefix)")
-    ap.add_argument("--channel", help="regular expression for the channel (default: the four "
-                    "exodaq channels with --prefix)")
+    ap.add_argument("--channel", help="regular expression for the channel (default: every "
+                    "exodaq channel with --prefix)")
     ap.add_argument("--count", type=int, help="stop after N messages")
     ap.add_argument("--timeout", type=float, help="stop after S seconds")
     ap.add_argument("--fields", action="store_true", help="print every field")

@@ -161,12 +161,18 @@ class Receiver:
 
     def messages(self, count=None, timeout=None):
         """Yields (channel, payload) until `count` messages or `timeout` s in total."""
-        deadline = None if timeout is None else time.monotonic() + timeout
-        n = 0
-        while count is None or n < count:
-            left = None if deadline is None else max(0.0, deadline - time.monotonic())
-            got = self.recv(left)
-            if got is None:
-                return
-            n += 1
-            yield got
+        return take(self.recv, count, timeout)
+
+
+def take(recv, count=None, timeout=None):
+    """Yields what recv(seconds left) returns until `count` items, `timeout` s
+    in total (None: no limit) or recv returns None."""
+    deadline = None if timeout is None else time.monotonic() + timeout
+    n = 0
+    while count is None or n < count:
+        left = None if deadline is None else max(0.0, deadline - time.monotonic())
+        got = recv(left)
+        if got is None:
+            return
+        n += 1
+        yield got
