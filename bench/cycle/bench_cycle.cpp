@@ -175,14 +175,6 @@ std::string json_of(const Stats& s) {
   return buf;
 }
 
-void sleep_until(std::int64_t t) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(t / 1'000'000'000);
-  ts.tv_nsec = static_cast<long>(t % 1'000'000'000);
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) != 0) {
-  }
-}
-
 // `n` cycles, one per period on real deadlines (caches and predictors go cold
 // between them, as in the daemon). With `publisher_thread`, the publisher
 // thread hands the messages over (the sink counts them) and the loop's
@@ -195,7 +187,7 @@ std::vector<std::int64_t> paced(std::int64_t n, bool publisher_thread) {
   d.reserve(static_cast<std::size_t>(n));
   std::int64_t deadline = mono_now_ns() + rig.period_ns;
   for (std::int64_t i = 0; i < n; ++i, deadline += rig.period_ns) {
-    sleep_until(deadline);
+    exodaq::sleep_until_mono(deadline);
     const std::int64_t a = mono_now_ns();
     rig.cycle();
     d.push_back(mono_now_ns() - a);

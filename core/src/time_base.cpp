@@ -12,13 +12,7 @@ namespace {
 class MonotonicLoopClock final : public LoopClock {
  public:
   std::int64_t now_ns() noexcept override { return mono_now_ns(); }
-  void sleep_until(std::int64_t deadline_ns) noexcept override {
-    timespec ts{};
-    ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
-    ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-    }
-  }
+  void sleep_until(std::int64_t deadline_ns) noexcept override { sleep_until_mono(deadline_ns); }
 };
 }  // namespace
 

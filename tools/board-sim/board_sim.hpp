@@ -29,9 +29,6 @@ struct Counters {
 // and re-open it later.
 bool interface_gone(int err) noexcept;
 
-// Sleeps until `mono_ns` on CLOCK_MONOTONIC (at once when it has passed).
-void sleep_until(std::int64_t mono_ns) noexcept;
-
 // Writes "# k seq t_s q0..q5 c0..c5 fault_bits" (the truth file's header).
 void write_truth_header(std::FILE* truth);
 

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "board_sim.hpp"
+#include "exodaq/common/clock_now.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/socketcan_backend.hpp"
@@ -24,7 +25,6 @@ namespace {
 namespace can = exodaq::drivers::can;
 namespace sim = exodaq::drivers::sim;
 using exodaq::board_sim::BoardSim;
-using exodaq::board_sim::sleep_until;
 using exodaq::drivers::CanPort;
 
 std::atomic<bool> g_stop{false};
@@ -129,13 +129,13 @@ void run(const Cli& cli, const sim::SimOptions& options, CanPort& port, BoardSim
   std::int64_t k = 0;
   while (!g_stop.load() && port.now_mono_ns() < end) {
     if (cli.free_run) {  // absolute deadlines: start + k * period
-      sleep_until(start + k * options.period_ns);
+      exodaq::sleep_until_mono(start + k * options.period_ns);
       link.up();
       board.cycle(k++, start);
       continue;
     }
     if (!link.up()) {
-      sleep_until(port.now_mono_ns() + 50'000'000);
+      exodaq::sleep_until_mono(port.now_mono_ns() + 50'000'000);
       continue;
     }
     for (int s = receive_syncs(port, options.board.ids); s > 0; --s) {

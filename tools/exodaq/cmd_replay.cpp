@@ -49,15 +49,6 @@ void on_interrupt(int /*sig*/) {
   g_interrupted.store(true);
 }
 
-void sleep_until(std::int64_t deadline_ns) {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(deadline_ns / 1'000'000'000);
-  ts.tv_nsec = static_cast<long>(deadline_ns % 1'000'000'000);
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR &&
-         !g_interrupted.load()) {
-  }
-}
-
 std::int64_t thread_cpu_now() {
   return clock_ns(CLOCK_THREAD_CPUTIME_ID);
 }
@@ -276,8 +267,9 @@ ReplayRun drive_cycles(core::Acquisition& acq, const drivers::ReplaySource& repl
     const std::int64_t t = next >= 0 ? next : last_t;
     if (speed > 0.0 && next >= 0) {
       if (first_recorded < 0) first_recorded = next;
-      sleep_until(run_start +
-                  static_cast<std::int64_t>(static_cast<double>(next - first_recorded) / speed));
+      sleep_until_mono(
+          run_start + static_cast<std::int64_t>(static_cast<double>(next - first_recorded) / speed),
+          &g_interrupted);
     }
     // The recorded instant is both deadline and wake-up: a missing sample
     // keeps its recorded mono_ns, and the status timing describes the recording.

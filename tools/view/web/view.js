@@ -222,7 +222,7 @@
         FAULT: 'bad', STOPPING: 'bad' }[s.state];
       badge($('service'), s.state, stateClass);
       const c = s.clock;
-      const clockText = c.synchronised ? `synced ±${fmt(c.est_error_us, 0)} µs`
+      const clockText = c.synchronised ? (c.est_error_us === null ? 'synced (error unknown)' : `synced ±${fmt(c.est_error_us, 0)} µs`)
         : c.required ? 'NOT SYNCHRONISED' : 'not synchronised (ignored by the config)';
       badge($('clock'), clockText, c.synchronised && c.steps === 0 ? 'good' : c.required ? 'warn' : '');
       $('message').textContent = s.message;

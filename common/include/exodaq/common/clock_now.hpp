@@ -2,6 +2,7 @@
 // The clocks, read the same way everywhere (one clock_gettime, no allocation).
 #include <time.h>
 
+#include <atomic>
 #include <cstdint>
 
 namespace exodaq {
@@ -20,6 +21,18 @@ inline std::int64_t mono_now_ns() noexcept {
 // CLOCK_REALTIME, us since the Unix epoch (LCM's utime).
 inline std::int64_t wall_now_us() noexcept {
   return clock_ns(CLOCK_REALTIME) / 1000;
+}
+
+// Sleeps until CLOCK_MONOTONIC reaches mono_ns (an absolute deadline: no
+// drift from the time spent before the call). A signal resumes the sleep,
+// unless `stop` is given and set (a Ctrl-C handler ends a paced loop at once).
+inline void sleep_until_mono(std::int64_t mono_ns,
+                             const std::atomic<bool>* stop = nullptr) noexcept {
+  const timespec ts{static_cast<time_t>(mono_ns / 1'000'000'000),
+                    static_cast<long>(mono_ns % 1'000'000'000)};
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR &&
+         (stop == nullptr || !stop->load())) {
+  }
 }
 
 }  // namespace exodaq
