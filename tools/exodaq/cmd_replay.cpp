@@ -25,6 +25,7 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -382,16 +383,18 @@ void report_issues(const drivers::ReplaySource& replay, const std::string& input
   }
 }
 
-int run_replay(const ReplayOptions& o, bool speed_given) {
+// The options that go together, and --speed as a number (0: max); nullopt
+// after a usage error was printed.
+std::optional<double> replay_speed(const ReplayOptions& o, bool speed_given) {
   if (o.live == !o.out.empty()) {
     print_error(o.live ? "--live publishes on LCM; it takes no --out"
                        : "give --out FILE.lcm (write a log) or --live (publish on LCM)");
-    return kExitUsage;
+    return std::nullopt;
   }
   if (!o.live && ((speed_given && o.speed != "max") || !o.url.empty())) {
     print_error(std::string(o.url.empty() ? "--speed " + o.speed : "--url") +
                 " goes with --live (a file is always written flat out: --speed max)");
-    return kExitUsage;
+    return std::nullopt;
   }
   double speed = 0.0;
   if (o.live && o.speed != "max") {
@@ -400,9 +403,16 @@ int run_replay(const ReplayOptions& o, bool speed_given) {
     if (end == o.speed.c_str() || *end != '\0' || !(speed > 0.0) || !std::isfinite(speed)) {
       print_error("--speed must be a positive number (x real time) or 'max', not '" + o.speed +
                   "'");
-      return kExitUsage;
+      return std::nullopt;
     }
   }
+  return speed;
+}
+
+int run_replay(const ReplayOptions& o, bool speed_given) {
+  const std::optional<double> checked_speed = replay_speed(o, speed_given);
+  if (!checked_speed) return kExitUsage;
+  const double speed = *checked_speed;
   const std::vector<std::string> inputs{o.input, o.config, o.calibration};
   if (!o.live) {
     files::OutputOptions oo;
