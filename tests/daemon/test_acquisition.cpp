@@ -243,6 +243,39 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
   EXPECT_EQ(expected_seq, 1000);
 }
 
+// The final status covers the cycles since the last window. When the loop
+// stops right after a window closed it covers none: it repeats that window's
+// seq, says so with an empty window (state STOPPING), and does not call it 0 % valid
+// (docs/messages.md, status_t.seq).
+TEST(Acquisition, AFinalStatusAfterAnEmptyWindowRepeatsItsSeq) {
+  MemorySink* sink = nullptr;
+  auto acq = make_acquisition(std::make_unique<RampSource>(), sink);
+  sink->keep = true;
+  acq->prepare_for_manual_cycles();
+  const std::int64_t t0 = 100 * 1'000'000'000LL;
+  for (int k = 0; k < 200; ++k) {
+    ASSERT_TRUE(acq->run_cycle(t0 + k * kMs, t0 + k * kMs + 20'000));
+    acq->publisher().drain();
+  }
+  acq->stop();
+  acq->publisher().drain();
+  std::vector<exodaq::status_t> status;
+  for (const auto& [channel, bytes] : sink->kept) {
+    if (channel == exodaq::msg::Kind::kStatus) status.push_back(decode<exodaq::status_t>(bytes));
+  }
+  ASSERT_EQ(status.size(), 3U);
+  EXPECT_EQ(status[0].seq, 99);
+  EXPECT_EQ(status[1].seq, 199);
+  EXPECT_EQ(status[1].window_cycles, 100);
+  EXPECT_NE(status[1].message.find("100.0% valid"), std::string::npos) << status[1].message;
+  EXPECT_EQ(status[2].seq, 199);
+  EXPECT_EQ(int{status[2].state}, int{exodaq::status_t::STATE_STOPPING});
+  EXPECT_EQ(status[2].window_cycles, 0);
+  EXPECT_EQ(status[2].cycles, 200);
+  EXPECT_EQ(status[2].message, "stopping: 6/6 homed, no cycle since the last status, 0 overruns")
+      << status[2].message;
+}
+
 // The listener's hand-over: from the cycle after set_foreign_run_id() every
 // sample is FOREIGN_RUN and the status names the run, degraded; 0 ends it.
 TEST(Acquisition, AForeignRunFlagsEverySampleAndDegradesUntilCleared) {

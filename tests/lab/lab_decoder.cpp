@@ -75,12 +75,15 @@ struct State {
   bool have_status = false;
 };
 
-void account(Channel& c, const Stamp& s, std::int64_t mono, std::int64_t wall, bool per_cycle) {
+// `final_status`: the daemon's last status, which may repeat the previous
+// status's seq when no cycle ran after that window (docs/messages.md).
+void account(Channel& c, const Stamp& s, std::int64_t mono, std::int64_t wall, bool per_cycle,
+             bool final_status) {
   if (c.count == 0 || s.run_id != c.run_id) {
     ++c.run_ids;
     c.run_id = s.run_id;
     c.first_seq = s.seq;
-  } else if (s.seq <= c.last_seq) {
+  } else if (s.seq < c.last_seq || (s.seq == c.last_seq && !final_status)) {
     ++c.out_of_order;
     return;
   } else if (s.seq > c.last_seq + 1 && per_cycle) {
@@ -127,7 +130,8 @@ void handle(const lcm_recv_buf_t* rbuf, const char*, void* user) {
     ++c.decode_errors;
     return;
   }
-  account(c, s, mono, wall, sub->index != 3);
+  const bool status = sub->index == 3;
+  account(c, s, mono, wall, !status, status && st.status.state == exodaq::status_t::STATE_STOPPING);
 }
 
 double percentile(std::vector<std::int64_t> v, double q) {
