@@ -7,14 +7,10 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "exodaq/common/clock_now.hpp"
+
 namespace exodaq::drivers {
 namespace {
-
-std::int64_t now_ns(clockid_t clock) noexcept {
-  timespec ts{};
-  clock_gettime(clock, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 BoardDecoderConfig decoder_config(const SimOptions& o) {
   BoardDecoderConfig c;
@@ -48,10 +44,10 @@ void SimSource::start() {
   last_read_s_ = -1.0;
   last_now_ns_ = 0;
   last_delivered_mono_ns_ = 0;
-  const std::int64_t mono = now_ns(CLOCK_MONOTONIC);
+  const std::int64_t mono = mono_now_ns();
   start_mono_ns_ = options_.start_mono_ns != 0 ? options_.start_mono_ns : mono;
   wall_offset_ns_ =
-      options_.wall_offset_ns != 0 ? options_.wall_offset_ns : now_ns(CLOCK_REALTIME) - mono;
+      options_.wall_offset_ns != 0 ? options_.wall_offset_ns : clock_ns(CLOCK_REALTIME) - mono;
 }
 
 void SimSource::queue_frames(int n) noexcept {
