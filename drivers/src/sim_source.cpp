@@ -65,17 +65,6 @@ void SimSource::queue_frames(int n) noexcept {
   }
 }
 
-void SimSource::feed_arrived(std::int64_t until_mono_ns) noexcept {
-  int fed = 0;
-  while (fed < pending_n_ && pending_[static_cast<std::size_t>(fed)].mono_ns <= until_mono_ns) {
-    decoder_.on_frame(pending_[static_cast<std::size_t>(fed++)]);
-  }
-  for (int i = fed; i < pending_n_; ++i) {
-    pending_[static_cast<std::size_t>(i - fed)] = pending_[static_cast<std::size_t>(i)];
-  }
-  pending_n_ -= fed;
-}
-
 bool SimSource::feed_one(std::int64_t until_mono_ns) noexcept {
   if (pending_n_ == 0 || pending_[0].mono_ns > until_mono_ns) return false;
   decoder_.on_frame(pending_[0]);
@@ -105,7 +94,8 @@ ReadStatus SimSource::read_aligned(const CycleTime& time, EncoderSample& out) no
   stall_if_due(rig_.sample_time_s(k));
   queue_frames(rig_.step(k, frames_, start_mono_ns_, wall_offset_ns_));
   // The reader waits half a period for the cycle (jitter stays below that).
-  feed_arrived(start_mono_ns_ + k * options_.period_ns + options_.period_ns / 2);
+  while (feed_one(start_mono_ns_ + k * options_.period_ns + options_.period_ns / 2)) {
+  }
   if (decoder_.poll_newest(out) >= 0 || decoder_.flush(out)) return ReadStatus::kSample;
   const std::int64_t mono = start_mono_ns_ + rig_.sample_offset_ns(k);
   decoder_.make_missing(out, mono, mono + wall_offset_ns_);

@@ -70,7 +70,6 @@ class SimSource final : public EncoderSource {
   static constexpr int kPendingCapacity =
       (sim::SimRig::kMaxDelayPeriods + 2) * sim::SimBoard::kMaxFramesPerCycle;
   void queue_frames(int n) noexcept;
-  void feed_arrived(std::int64_t until_mono_ns) noexcept;
 
   SimOptions options_;
   sim::SimRig rig_;
