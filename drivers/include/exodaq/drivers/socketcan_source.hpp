@@ -98,8 +98,11 @@ class SocketCanSource final : public EncoderSource {
   // Closes a lone half as PARTIAL when it is due; true when `out` holds a sample.
   bool flush_partial(bool got, std::int64_t sync_mono, std::int64_t period,
                      EncoderSample& out) noexcept;
-  ReadStatus read_sync_master(const CycleTime& time, std::int64_t now, EncoderSample& out) noexcept;
-  ReadStatus read_free_running(const CycleTime& time, std::int64_t poll_deadline,
+  // Until when a read waits for frames, counted from `from` (the deadline, or a late SYNC).
+  std::int64_t poll_deadline(std::int64_t from, std::int64_t period) const noexcept;
+  ReadStatus read_sync_master(const CycleTime& time, std::int64_t period, std::int64_t now,
+                              EncoderSample& out) noexcept;
+  ReadStatus read_free_running(const CycleTime& time, std::int64_t period,
                                EncoderSample& out) noexcept;
 
   SocketCanSourceConfig config_;
