@@ -157,15 +157,7 @@ bool SocketCanSource::have_current(std::int64_t sync_mono) const noexcept {
   return !config_.sync_master || newest_complete_mono_ >= sync_mono;
 }
 
-bool SocketCanSource::take_newest(EncoderSample& out) noexcept {
-  const int superseded = decoder_.poll_newest(out);
-  if (superseded < 0) return false;
-  detail_.superseded_samples += superseded;
-  return true;
-}
-
-std::int64_t SocketCanSource::send_sync(std::int64_t now) noexcept {
-  if (!config_.sync_master) return 0;
+void SocketCanSource::send_sync() noexcept {
   const int r = port_->send(can::encode_sync(config_.port.ids));
   if (r == 0) {
     ++detail_.sync_sent;
@@ -175,7 +167,6 @@ std::int64_t SocketCanSource::send_sync(std::int64_t now) noexcept {
     ++detail_.sync_send_failures;  // EAGAIN / ENOBUFS: TX queue full, never waited for
     detail_.last_errno = -r;
   }
-  return now;
 }
 
 void SocketCanSource::receive_until(std::int64_t poll_deadline, std::int64_t sync_mono) noexcept {
@@ -218,7 +209,6 @@ bool SocketCanSource::flush_partial(bool got, std::int64_t sync_mono, std::int64
   if (decoder_.flush(scratch_)) {
     merge_superseded(out, scratch_);
     out = scratch_;
-    ++detail_.superseded_samples;
     decoder_.count_superseded(1);
     ++detail_.partial_flushes;
   }
@@ -259,9 +249,10 @@ ReadStatus SocketCanSource::read_sync_master(const CycleTime& time, std::int64_t
   // the answer is waited for from the SYNC on, not from the missed deadline.
   const bool late = now - start > period / 10;
   if (late) ++detail_.late_syncs;
-  const std::int64_t sync_mono = send_sync(now);
+  const std::int64_t sync_mono = now;
+  send_sync();
   receive_until(poll_deadline(late ? now : start, period), sync_mono);
-  const bool got = take_newest(out);
+  const bool got = decoder_.poll_newest(out) >= 0;  // older complete cycles are superseded
   if (flush_partial(got, sync_mono, period, out) || got) return ReadStatus::kSample;
   decoder_.make_missing(out, start, start + offset_ns_);
   return ReadStatus::kNoSample;
