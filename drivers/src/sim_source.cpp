@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
-#include <stdexcept>
 
 #include "exodaq/common/clock_now.hpp"
 
@@ -29,12 +28,7 @@ void sleep_for_s(double seconds) noexcept {
 }  // namespace
 
 SimSource::SimSource(const SimOptions& options)
-    : options_(options), rig_(options), decoder_(decoder_config(options)) {
-  for (const sim::SimFault& f : options_.faults) {
-    if (f.kind == sim::SimFault::Kind::kStall && !(f.duration_s > 0.0))
-      throw std::invalid_argument("sim: a stall fault needs a duration (for_s > 0)");
-  }
-}
+    : options_(options), rig_(options), decoder_(decoder_config(options)) {}
 
 void SimSource::start() {
   rig_ = sim::SimRig(options_);  // rewind the encoders to power-up

@@ -31,7 +31,7 @@ using sim::SimOptions;
 
 class SimSource final : public EncoderSource {
  public:
-  // Throws std::invalid_argument on inconsistent options (also a stall without a duration).
+  // Throws std::invalid_argument on inconsistent options (SimRig's checks).
   explicit SimSource(const SimOptions& options = {});
 
   std::string_view name() const noexcept override { return "sim"; }
