@@ -3,7 +3,6 @@
 #include <time.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 
 #include "exodaq/common/clock_now.hpp"
@@ -15,14 +14,6 @@ BoardDecoderConfig decoder_config(const SimOptions& o) {
   BoardDecoderConfig c;
   c.ids = o.board.ids;
   return c;
-}
-
-void sleep_for_s(double seconds) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(seconds);
-  ts.tv_nsec = static_cast<long>((seconds - std::floor(seconds)) * 1e9);
-  while (nanosleep(&ts, &ts) != 0 && errno == EINTR) {
-  }
 }
 
 }  // namespace
@@ -154,8 +145,9 @@ std::int64_t SimSource::stall_if_due(double t_s) noexcept {
   std::int64_t slept = 0;
   for (const sim::SimFault& f : options_.faults) {
     if (f.kind == sim::SimFault::Kind::kStall && last_read_s_ < f.start_s && t_s >= f.start_s) {
-      sleep_for_s(f.duration_s);
-      slept += static_cast<std::int64_t>(std::llround(f.duration_s * 1e9));
+      const auto ns = static_cast<std::int64_t>(std::llround(f.duration_s * 1e9));
+      sleep_until_mono_ns(mono_now_ns() + ns);
+      slept += ns;
     }
   }
   last_read_s_ = t_s;

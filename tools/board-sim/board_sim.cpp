@@ -1,19 +1,12 @@
 #include "board_sim.hpp"
 
-#include <time.h>
-
 #include <bit>
 #include <cerrno>
 
+#include "exodaq/common/clock_now.hpp"
+
 namespace exodaq::board_sim {
 namespace {
-
-void sleep_until(std::int64_t mono_ns) noexcept {
-  const timespec ts{static_cast<time_t>(mono_ns / 1'000'000'000),
-                    static_cast<long>(mono_ns % 1'000'000'000)};
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-}
 
 bool interface_gone(int err) noexcept {
   return err == -ENETDOWN || err == -ENODEV || err == -ENXIO || err == -EBADF;
@@ -33,7 +26,7 @@ int BoardSim::send(const drivers::can::CanFrame& frame) noexcept {
   for (int attempt = 0; attempt < 5; ++attempt) {
     r = port_.send(frame);
     if (r != -EAGAIN && r != -ENOBUFS) return r;
-    sleep_until(port_.now_mono_ns() + 200'000);  // the TX queue drains
+    sleep_until_mono_ns(port_.now_mono_ns() + 200'000);  // the TX queue drains
   }
   return r;
 }
@@ -44,7 +37,7 @@ void BoardSim::cycle(std::int64_t k, std::int64_t start_mono_ns) {
   std::uint32_t bits = rig_.last_cycle().applied;
   for (int i = 0; i < n; ++i) {
     const auto& frame = frames_[static_cast<std::size_t>(i)];
-    if (frame.mono_ns > port_.now_mono_ns()) sleep_until(frame.mono_ns);
+    if (frame.mono_ns > port_.now_mono_ns()) sleep_until_mono_ns(frame.mono_ns);
     const int err = port_.is_open() ? send(frame) : -ENODEV;
     if (err == 0) {
       ++counters_.frames;

@@ -1,7 +1,9 @@
 #pragma once
-// The clocks, read the same way everywhere (one clock_gettime, no allocation).
+// The clocks, read the same way everywhere (one clock_gettime, no allocation),
+// and the one way to sleep until a CLOCK_MONOTONIC instant.
 #include <time.h>
 
+#include <cerrno>
 #include <cstdint>
 
 namespace exodaq {
@@ -20,6 +22,15 @@ inline std::int64_t mono_now_ns() noexcept {
 // CLOCK_REALTIME, us since the Unix epoch (LCM's utime).
 inline std::int64_t wall_now_us() noexcept {
   return clock_ns(CLOCK_REALTIME) / 1000;
+}
+
+// Sleeps until CLOCK_MONOTONIC reaches `mono_ns` (absolute: no drift from
+// the time spent before the call); a signal does not cut it short.
+inline void sleep_until_mono_ns(std::int64_t mono_ns) noexcept {
+  const timespec ts{static_cast<time_t>(mono_ns / 1'000'000'000),
+                    static_cast<long>(mono_ns % 1'000'000'000)};
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
 }
 
 }  // namespace exodaq
