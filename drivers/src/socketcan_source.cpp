@@ -9,15 +9,6 @@
 #include <utility>
 
 namespace exodaq::drivers {
-namespace {
-
-// Errors that mean the interface is gone or down: close and retry later.
-bool is_interface_loss(int err) noexcept {
-  return err == ENETDOWN || err == ENODEV || err == ENXIO || err == ENETUNREACH || err == EBADF;
-}
-
-}  // namespace
-
 SocketCanSource::SocketCanSource(const SocketCanSourceConfig& config, std::unique_ptr<CanPort> port)
     : config_(config), port_(std::move(port)), decoder_(config.decoder) {
   if (!port_) throw std::invalid_argument("socketcan: no CAN port");
