@@ -372,6 +372,8 @@ void check_fault(const SimFault& f, std::int64_t period_ns) {
   const std::string what = "fault " + std::string(sim_fault_name(f.kind)) + ": ";
   if (f.joint < 0 || f.joint >= kJoints) bad(what + "joint must be 1..6");
   if (!(f.start_s >= 0.0)) bad(what + "at_s must be >= 0");
+  // A stall blocks the reader for for_s: without one it would block for ever.
+  if (f.kind == SimFault::Kind::kStall && !(f.duration_s > 0.0)) bad(what + "for_s must be > 0");
   if (!(f.percent >= 0.0 && f.percent <= 100.0)) bad(what + "percent must be in [0, 100]");
   if (f.every < 1) bad(what + "every must be >= 1");
   if (!(f.delay_us >= 0.0) ||

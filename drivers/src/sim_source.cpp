@@ -3,18 +3,12 @@
 #include <time.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <stdexcept>
+
+#include "exodaq/common/clock_now.hpp"
 
 namespace exodaq::drivers {
 namespace {
-
-std::int64_t now_ns(clockid_t clock) noexcept {
-  timespec ts{};
-  clock_gettime(clock, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 BoardDecoderConfig decoder_config(const SimOptions& o) {
   BoardDecoderConfig c;
@@ -22,23 +16,10 @@ BoardDecoderConfig decoder_config(const SimOptions& o) {
   return c;
 }
 
-void sleep_for_s(double seconds) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(seconds);
-  ts.tv_nsec = static_cast<long>((seconds - std::floor(seconds)) * 1e9);
-  while (nanosleep(&ts, &ts) != 0 && errno == EINTR) {
-  }
-}
-
 }  // namespace
 
 SimSource::SimSource(const SimOptions& options)
-    : options_(options), rig_(options), decoder_(decoder_config(options)) {
-  for (const sim::SimFault& f : options_.faults) {
-    if (f.kind == sim::SimFault::Kind::kStall && !(f.duration_s > 0.0))
-      throw std::invalid_argument("sim: a stall fault needs a duration (for_s > 0)");
-  }
-}
+    : options_(options), rig_(options), decoder_(decoder_config(options)) {}
 
 void SimSource::start() {
   rig_ = sim::SimRig(options_);  // rewind the encoders to power-up
@@ -48,10 +29,10 @@ void SimSource::start() {
   last_read_s_ = -1.0;
   last_now_ns_ = 0;
   last_delivered_mono_ns_ = 0;
-  const std::int64_t mono = now_ns(CLOCK_MONOTONIC);
+  const std::int64_t mono = mono_now_ns();
   start_mono_ns_ = options_.start_mono_ns != 0 ? options_.start_mono_ns : mono;
   wall_offset_ns_ =
-      options_.wall_offset_ns != 0 ? options_.wall_offset_ns : now_ns(CLOCK_REALTIME) - mono;
+      options_.wall_offset_ns != 0 ? options_.wall_offset_ns : clock_ns(CLOCK_REALTIME) - mono;
 }
 
 void SimSource::queue_frames(int n) noexcept {
@@ -67,17 +48,6 @@ void SimSource::queue_frames(int n) noexcept {
     }
     pending_[static_cast<std::size_t>(at)] = f;
   }
-}
-
-void SimSource::feed_arrived(std::int64_t until_mono_ns) noexcept {
-  int fed = 0;
-  while (fed < pending_n_ && pending_[static_cast<std::size_t>(fed)].mono_ns <= until_mono_ns) {
-    decoder_.on_frame(pending_[static_cast<std::size_t>(fed++)]);
-  }
-  for (int i = fed; i < pending_n_; ++i) {
-    pending_[static_cast<std::size_t>(i - fed)] = pending_[static_cast<std::size_t>(i)];
-  }
-  pending_n_ -= fed;
 }
 
 bool SimSource::feed_one(std::int64_t until_mono_ns) noexcept {
@@ -109,7 +79,8 @@ ReadStatus SimSource::read_aligned(const CycleTime& time, EncoderSample& out) no
   stall_if_due(rig_.sample_time_s(k));
   queue_frames(rig_.step(k, frames_, start_mono_ns_, wall_offset_ns_));
   // The reader waits half a period for the cycle (jitter stays below that).
-  feed_arrived(start_mono_ns_ + k * options_.period_ns + options_.period_ns / 2);
+  while (feed_one(start_mono_ns_ + k * options_.period_ns + options_.period_ns / 2)) {
+  }
   if (decoder_.poll_newest(out) >= 0 || decoder_.flush(out)) return ReadStatus::kSample;
   const std::int64_t mono = start_mono_ns_ + rig_.sample_offset_ns(k);
   decoder_.make_missing(out, mono, mono + wall_offset_ns_);
@@ -174,8 +145,9 @@ std::int64_t SimSource::stall_if_due(double t_s) noexcept {
   std::int64_t slept = 0;
   for (const sim::SimFault& f : options_.faults) {
     if (f.kind == sim::SimFault::Kind::kStall && last_read_s_ < f.start_s && t_s >= f.start_s) {
-      sleep_for_s(f.duration_s);
-      slept += static_cast<std::int64_t>(std::llround(f.duration_s * 1e9));
+      const auto ns = static_cast<std::int64_t>(std::llround(f.duration_s * 1e9));
+      sleep_until_mono(mono_now_ns() + ns);
+      slept += ns;
     }
   }
   last_read_s_ = t_s;

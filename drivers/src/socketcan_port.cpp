@@ -1,5 +1,6 @@
 // The real CanPort: a CAN_RAW socket. See can_port.hpp for the contract and
 // docs/can-protocol.md ("The socketcan backend") for the behaviour.
+// <linux/errqueue.h> uses struct timespec without declaring it: these first.
 #include <sys/socket.h>
 #include <time.h>
 
@@ -10,24 +11,17 @@
 #include <net/if.h>
 #include <poll.h>
 #include <sys/ioctl.h>
-#include <sys/socket.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <array>
 #include <cerrno>
 #include <cstring>
 
+#include "exodaq/common/clock_now.hpp"
 #include "exodaq/drivers/can_port.hpp"
 
 namespace exodaq::drivers {
 namespace {
-
-std::int64_t clock_ns(clockid_t clock) noexcept {
-  timespec ts{};
-  clock_gettime(clock, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 std::int64_t to_ns(const timespec& ts) noexcept {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
@@ -148,7 +142,7 @@ class SocketCanPort final : public CanPort {
     return 1;  // POLLIN, or POLLERR: receive() reports the pending error
   }
 
-  std::int64_t now_mono_ns() noexcept override { return clock_ns(CLOCK_MONOTONIC); }
+  std::int64_t now_mono_ns() noexcept override { return mono_now_ns(); }
   std::int64_t now_wall_ns() noexcept override { return clock_ns(CLOCK_REALTIME); }
 
  private:

@@ -9,15 +9,6 @@
 #include <utility>
 
 namespace exodaq::drivers {
-namespace {
-
-// Errors that mean the interface is gone or down: close and retry later.
-bool is_interface_loss(int err) noexcept {
-  return err == ENETDOWN || err == ENODEV || err == ENXIO || err == ENETUNREACH || err == EBADF;
-}
-
-}  // namespace
-
 SocketCanSource::SocketCanSource(const SocketCanSourceConfig& config, std::unique_ptr<CanPort> port)
     : config_(config), port_(std::move(port)), decoder_(config.decoder) {
   if (!port_) throw std::invalid_argument("socketcan: no CAN port");
@@ -157,15 +148,7 @@ bool SocketCanSource::have_current(std::int64_t sync_mono) const noexcept {
   return !config_.sync_master || newest_complete_mono_ >= sync_mono;
 }
 
-bool SocketCanSource::take_newest(EncoderSample& out) noexcept {
-  const int superseded = decoder_.poll_newest(out);
-  if (superseded < 0) return false;
-  detail_.superseded_samples += superseded;
-  return true;
-}
-
-std::int64_t SocketCanSource::send_sync(std::int64_t now) noexcept {
-  if (!config_.sync_master) return 0;
+void SocketCanSource::send_sync() noexcept {
   const int r = port_->send(can::encode_sync(config_.port.ids));
   if (r == 0) {
     ++detail_.sync_sent;
@@ -175,7 +158,6 @@ std::int64_t SocketCanSource::send_sync(std::int64_t now) noexcept {
     ++detail_.sync_send_failures;  // EAGAIN / ENOBUFS: TX queue full, never waited for
     detail_.last_errno = -r;
   }
-  return now;
 }
 
 void SocketCanSource::receive_until(std::int64_t poll_deadline, std::int64_t sync_mono) noexcept {
@@ -218,7 +200,6 @@ bool SocketCanSource::flush_partial(bool got, std::int64_t sync_mono, std::int64
   if (decoder_.flush(scratch_)) {
     merge_superseded(out, scratch_);
     out = scratch_;
-    ++detail_.superseded_samples;
     decoder_.count_superseded(1);
     ++detail_.partial_flushes;
   }
@@ -228,6 +209,12 @@ bool SocketCanSource::flush_partial(bool got, std::int64_t sync_mono, std::int64
 int SocketCanSource::backlog() const noexcept {
   if (config_.sync_master || !up_) return 0;
   return decoder_.queued() + (socket_may_hold_more_ ? 1 : 0);
+}
+
+std::int64_t SocketCanSource::poll_deadline(std::int64_t from, std::int64_t period) const noexcept {
+  // Wait for a cycle until the read deadline, never past the end of the
+  // cycle minus a guard of a tenth of the period.
+  return std::min(from + config_.read_deadline_ns, from + period - period / 10);
 }
 
 ReadStatus SocketCanSource::read(const CycleTime& time, EncoderSample& out) noexcept {
@@ -240,42 +227,35 @@ ReadStatus SocketCanSource::read(const CycleTime& time, EncoderSample& out) noex
     decoder_.make_missing(out, start, start + offset_ns_);
     return ReadStatus::kNoSample;
   }
-  if (config_.sync_master) return read_sync_master(time, now, out);
-  // Wait for a cycle until the read deadline, never past the end of the
-  // cycle minus a guard of a tenth of the period.
-  return read_free_running(
-      time, std::min(start + config_.read_deadline_ns, start + period - period / 10), out);
+  return config_.sync_master ? read_sync_master(time, period, now, out)
+                             : read_free_running(time, period, out);
 }
 
-ReadStatus SocketCanSource::read_sync_master(const CycleTime& time, std::int64_t now,
-                                             EncoderSample& out) noexcept {
+ReadStatus SocketCanSource::read_sync_master(const CycleTime& time, std::int64_t period,
+                                             std::int64_t now, EncoderSample& out) noexcept {
   const std::int64_t start = time.deadline_mono_ns;
-  const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
   if (time.catch_up) return ReadStatus::kNothingDue;  // one SYNC, one sample
   // The board samples when the SYNC arrives: a late SYNC moves the sample
   // instant (stamped truthfully, the receive stamp of its count frames), and
   // the answer is waited for from the SYNC on, not from the missed deadline.
   const bool late = now - start > period / 10;
   if (late) ++detail_.late_syncs;
-  const std::int64_t base = late ? now : start;
-  const std::int64_t poll_deadline =
-      std::min(base + config_.read_deadline_ns, base + period - period / 10);
-  const std::int64_t sync_mono = send_sync(now);
-  receive_until(poll_deadline, sync_mono);
-  const bool got = take_newest(out);
+  const std::int64_t sync_mono = now;
+  send_sync();
+  receive_until(poll_deadline(late ? now : start, period), sync_mono);
+  const bool got = decoder_.poll_newest(out) >= 0;  // older complete cycles are superseded
   if (flush_partial(got, sync_mono, period, out) || got) return ReadStatus::kSample;
   decoder_.make_missing(out, start, start + offset_ns_);
   return ReadStatus::kNoSample;
 }
 
-ReadStatus SocketCanSource::read_free_running(const CycleTime& time, std::int64_t poll_deadline,
+ReadStatus SocketCanSource::read_free_running(const CycleTime& time, std::int64_t period,
                                               EncoderSample& out) noexcept {
   const std::int64_t start = time.deadline_mono_ns;
-  const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
   if (time.catch_up) {
     drain();
   } else {
-    receive_until(poll_deadline, 0);
+    receive_until(poll_deadline(start, period), 0);
   }
   // Every complete cycle, oldest first: none is superseded.
   if (decoder_.poll_sample(out) || flush_partial(false, 0, period, out)) {

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "exodaq/common/clock_now.hpp"
 #include "exodaq/drivers/can_port.hpp"
 
 namespace exodaq::drivers {
@@ -39,9 +40,7 @@ bool have_vcan() {
   if (!have_vcan()) GTEST_SKIP() << "no PF_CAN or no " << iface() << " (runs in the VM)"
 
 std::int64_t wall_now() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+  return clock_ns(CLOCK_REALTIME);
 }
 
 // A second node on the bus.

@@ -74,6 +74,17 @@ struct Fixture {
     return source->read(t, sample);
   }
   std::int64_t deadline(std::int64_t k) const { return kT0 + k * kPeriod; }
+  // A free-running board: its cycles 0 .. cycles - 1 put on the port in
+  // advance, cycle k's frames from first + k * period on, 1 µs apart.
+  void free_run(std::int64_t cycles, std::int64_t first) {
+    sim::SimRig rig{sim::SimOptions{}};
+    sim::SimBoard::Frames frames{};
+    for (std::int64_t k = 0; k < cycles; ++k) {
+      const int n = rig.step(k, frames, 0, 0);
+      for (int i = 0; i < n; ++i)
+        port->push(frames[static_cast<std::size_t>(i)], first + k * kPeriod + i * 1000);
+    }
+  }
 
   SocketCanSourceConfig cfg;
   MemoryCanPort* port = nullptr;
@@ -394,17 +405,10 @@ TEST(SocketCanSource, SyncSendQueueFullIsCountedNotBlocking) {
 TEST(SocketCanSource, FreeRunningBoardFollowed) {
   Fixture f(false);
   f.source->start();
-  sim::SimRig rig{sim::SimOptions{}};
-  sim::SimBoard::Frames frames{};
   // The board samples at its own 1 kHz, 700 µs after each of our deadlines:
   // later than the poll deadline, so each read() delivers the previous
   // board cycle at once without waiting.
-  for (std::int64_t k = 0; k < 100; ++k) {
-    const int n = rig.step(k, frames, 0, 0);
-    for (int i = 0; i < n; ++i) {
-      f.port->push(frames[static_cast<std::size_t>(i)], f.deadline(k) + 700'000 + i * 1000);
-    }
-  }
+  f.free_run(100, f.deadline(0) + 700'000);
   EXPECT_EQ(f.cycle(0), ReadStatus::kNoSample);
   for (std::int64_t k = 1; k < 100; ++k) {
     ASSERT_EQ(f.cycle(k), ReadStatus::kSample) << k;
@@ -419,14 +423,7 @@ TEST(SocketCanSource, FreeRunningBoardFollowed) {
 TEST(SocketCanSource, FreeRunningBoardEarlyInTheCycle) {
   Fixture f(false);
   f.source->start();
-  sim::SimRig rig{sim::SimOptions{}};
-  sim::SimBoard::Frames frames{};
-  for (std::int64_t k = 0; k < 50; ++k) {
-    const int n = rig.step(k, frames, 0, 0);
-    for (int i = 0; i < n; ++i) {
-      f.port->push(frames[static_cast<std::size_t>(i)], f.deadline(k) + 200'000 + i * 1000);
-    }
-  }
+  f.free_run(50, f.deadline(0) + 200'000);
   for (std::int64_t k = 0; k < 50; ++k) {
     ASSERT_EQ(f.cycle(k), ReadStatus::kSample) << k;
     EXPECT_EQ(f.sample.board_seq, k);  // waited for it within the cycle
@@ -441,16 +438,8 @@ TEST(SocketCanSource, FreeRunningBoardEarlyInTheCycle) {
 TEST(SocketCanSource, FreeRunningBacklogIsDeliveredOldestFirstWithNothingSuperseded) {
   Fixture f(false);
   f.source->start();
-  sim::SimRig rig{sim::SimOptions{}};
-  sim::SimBoard::Frames frames{};
   constexpr std::int64_t kQueued = 300;
-  for (std::int64_t k = 0; k < kQueued; ++k) {
-    const int n = rig.step(k, frames, 0, 0);
-    for (int i = 0; i < n; ++i) {
-      f.port->push(frames[static_cast<std::size_t>(i)],
-                   f.deadline(0) - (kQueued - k) * kPeriod + 200'000 + i * 1000);
-    }
-  }
+  f.free_run(kQueued, f.deadline(0) - kQueued * kPeriod + 200'000);
   CycleTime t;
   t.deadline_mono_ns = f.deadline(0);
   t.now_mono_ns = f.deadline(0);

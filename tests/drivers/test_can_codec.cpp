@@ -212,6 +212,14 @@ TEST(Unwrap16, SmallSteps) {
   EXPECT_EQ(can::unwrap16(-100000, static_cast<std::uint16_t>(-100010 & 0xFFFF)), -100010);
 }
 
+TEST(CountDelta16, SmallestSignedStepAcrossTheWrap) {
+  EXPECT_EQ(can::count_delta16(0xFFFE, 3), 5);
+  EXPECT_EQ(can::count_delta16(3, 0xFFFE), -5);
+  EXPECT_EQ(can::count_delta16(0, 0x7FFF), 32767);
+  EXPECT_EQ(can::count_delta16(0, 0x8000), -32768);
+  EXPECT_EQ(can::count_delta16(1234, 1234), 0);
+}
+
 TEST(Unwrap16, AcrossTheWrapBothDirections) {
   EXPECT_EQ(can::unwrap16(65530, 4), 65540);       // up through 0xFFFF → 0
   EXPECT_EQ(can::unwrap16(65540, 0xFFFA), 65530);  // back down

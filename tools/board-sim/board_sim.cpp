@@ -6,11 +6,6 @@
 #include "exodaq/common/clock_now.hpp"
 
 namespace exodaq::board_sim {
-
-bool interface_gone(int err) noexcept {
-  return err == -ENETDOWN || err == -ENODEV || err == -ENXIO || err == -EBADF;
-}
-
 void write_truth_header(std::FILE* truth) {
   std::fprintf(truth, "# k seq t_s q0 q1 q2 q3 q4 q5 c0 c1 c2 c3 c4 c5 fault_bits\n");
 }
@@ -42,7 +37,7 @@ void BoardSim::cycle(std::int64_t k, std::int64_t start_mono_ns) {
     }
     ++counters_.send_failures;
     bits |= kSendFailedBit;
-    if (interface_gone(err)) break;
+    if (drivers::is_interface_loss(-err)) break;
   }
   write_truth(bits);
 }

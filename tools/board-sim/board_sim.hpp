@@ -25,10 +25,6 @@ struct Counters {
   std::int64_t send_failures = 0;
 };
 
-// A CanPort result (−errno) saying the interface went away: close the port
-// and re-open it later.
-bool interface_gone(int err) noexcept;
-
 // Writes "# k seq t_s q0..q5 c0..c5 fault_bits" (the truth file's header).
 void write_truth_header(std::FILE* truth);
 

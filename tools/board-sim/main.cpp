@@ -112,7 +112,7 @@ int receive_syncs(CanPort& port, const can::ProtocolIds& ids) {
   std::array<can::CanFrame, 32> rx{};
   exodaq::drivers::CanRxInfo info;
   const int n = port.receive(rx.data(), static_cast<int>(rx.size()), info);
-  if (exodaq::board_sim::interface_gone(n)) port.close();
+  if (n < 0 && exodaq::drivers::is_interface_loss(-n)) port.close();
   int syncs = 0;
   for (int i = 0; i < n; ++i) {
     const can::CanFrame& f = rx[static_cast<std::size_t>(i)];

@@ -7,6 +7,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "exodaq/drivers/can_codec.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/homing_t.hpp"
 #include "exodaq/joint_state_t.hpp"
@@ -296,10 +297,7 @@ void LcmLoader::on_homing(const msg::LogEvent& ev) {
 // this very cycle, logged before it, is taken.
 void LcmLoader::follow_counts(const EncoderSample& s) {
   for (std::size_t c = 0; c < kChannelCount; ++c) {
-    if (have_counts_) {
-      travel_[c] +=
-          static_cast<std::int16_t>(static_cast<std::uint16_t>(s.count16[c] - last16_[c]));
-    }
+    if (have_counts_) travel_[c] += can::count_delta16(last16_[c], s.count16[c]);
     last16_[c] = s.count16[c];
   }
   have_counts_ = true;

@@ -1,8 +1,10 @@
 #pragma once
-// The clocks, read the same way everywhere (one clock_gettime, no allocation).
+// The clocks, read the same way everywhere (one clock_gettime, no allocation),
+// and the one way to sleep until a CLOCK_MONOTONIC instant.
 #include <time.h>
 
 #include <atomic>
+#include <cerrno>
 #include <cstdint>
 
 namespace exodaq {

@@ -8,6 +8,7 @@
 // Every call is non-blocking except wait_readable(), which blocks at most until
 // the given absolute CLOCK_MONOTONIC deadline. Error returns are negative errno
 // values (−ENETDOWN, −ENODEV, −EAGAIN, …), never exceptions.
+#include <cerrno>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -69,6 +70,12 @@ class CanPort {
   virtual std::int64_t now_mono_ns() noexcept = 0;
   virtual std::int64_t now_wall_ns() noexcept = 0;
 };
+
+// An error (positive errno) from any CanPort call that means the interface is
+// gone or down: close the port and re-open it later.
+inline bool is_interface_loss(int err) noexcept {
+  return err == ENETDOWN || err == ENODEV || err == ENXIO || err == ENETUNREACH || err == EBADF;
+}
 
 // The real port: a CAN_RAW socket (Linux only). Filters: the aligned 32-ID
 // blocks (mask 0x7E0) that hold the board's COUNTS, INDEX and HEARTBEAT IDs

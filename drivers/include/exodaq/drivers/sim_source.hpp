@@ -31,7 +31,7 @@ using sim::SimOptions;
 
 class SimSource final : public EncoderSource {
  public:
-  // Throws std::invalid_argument on inconsistent options (also a stall without a duration).
+  // Throws std::invalid_argument on inconsistent options (SimRig's checks).
   explicit SimSource(const SimOptions& options = {});
 
   std::string_view name() const noexcept override { return "sim"; }
@@ -70,7 +70,6 @@ class SimSource final : public EncoderSource {
   static constexpr int kPendingCapacity =
       (sim::SimRig::kMaxDelayPeriods + 2) * sim::SimBoard::kMaxFramesPerCycle;
   void queue_frames(int n) noexcept;
-  void feed_arrived(std::int64_t until_mono_ns) noexcept;
 
   SimOptions options_;
   sim::SimRig rig_;

@@ -76,7 +76,11 @@ class SocketCanSource final : public EncoderSource {
   void stop() noexcept override;
 
   const BoardDecoder& decoder() const noexcept { return decoder_; }
-  const SocketCanDetail& detail() const noexcept { return detail_; }
+  SocketCanDetail detail() const noexcept {
+    SocketCanDetail d = detail_;
+    d.superseded_samples = decoder_.stats().superseded_samples;  // the decoder counts them
+    return d;
+  }
   const SocketCanSourceConfig& config() const noexcept { return config_; }
 
  private:
@@ -92,14 +96,16 @@ class SocketCanSource final : public EncoderSource {
   bool drain() noexcept;
   void feed(const can::CanFrame& frame) noexcept;
   bool have_current(std::int64_t sync_mono) const noexcept;
-  bool take_newest(EncoderSample& out) noexcept;
-  std::int64_t send_sync(std::int64_t now) noexcept;  // the SYNC's send time (0: not master)
+  void send_sync() noexcept;
   void receive_until(std::int64_t poll_deadline, std::int64_t sync_mono) noexcept;
   // Closes a lone half as PARTIAL when it is due; true when `out` holds a sample.
   bool flush_partial(bool got, std::int64_t sync_mono, std::int64_t period,
                      EncoderSample& out) noexcept;
-  ReadStatus read_sync_master(const CycleTime& time, std::int64_t now, EncoderSample& out) noexcept;
-  ReadStatus read_free_running(const CycleTime& time, std::int64_t poll_deadline,
+  // Until when a read waits for frames, counted from `from` (the deadline, or a late SYNC).
+  std::int64_t poll_deadline(std::int64_t from, std::int64_t period) const noexcept;
+  ReadStatus read_sync_master(const CycleTime& time, std::int64_t period, std::int64_t now,
+                              EncoderSample& out) noexcept;
+  ReadStatus read_free_running(const CycleTime& time, std::int64_t period,
                                EncoderSample& out) noexcept;
 
   SocketCanSourceConfig config_;
