@@ -125,12 +125,15 @@ TEST(Reload, SighupAppliesANewCalibrationWithoutAGapAndRejectsABadOne) {
 }
 
 namespace {
+int occurrences(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
 bool wait_for(const std::string& path, const std::string& text, int count = 1) {
   for (int i = 0; i < 2000; ++i) {  // 20 s: the log is flushed once a second
-    const std::string t = test::read_file(path);
-    int n = 0;
-    for (auto at = t.find(text); at != std::string::npos; at = t.find(text, at + 1)) ++n;
-    if (n >= count) return true;
+    if (occurrences(test::read_file(path), text) >= count) return true;
     std::this_thread::sleep_for(10ms);
   }
   return false;
@@ -152,12 +155,6 @@ bool wait_for_status(const std::string& file, int reloads) {
     std::this_thread::sleep_for(10ms);
   }
   return false;
-}
-
-int occurrences(const std::string& text, const std::string& what) {
-  int n = 0;
-  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
-  return n;
 }
 }  // namespace
 
