@@ -233,6 +233,16 @@ TEST(Reload, EveryRestartOnlyChangeIsWarnedOnEverySighupAndStatusShowsTheFilesIn
   EXPECT_EQ(last.calibration_sha256, config::sha256_hex(test::read_file(started.calibration_path)));
   EXPECT_EQ(last.calibration_provenance, "hand-written for the simulated rig, 2026-11-22");
   // The restart-only settings kept their running values: the joint names
-  // published are the start-up ones, statuses still at 10 Hz.
+  // published are the start-up ones, statuses still at 10 Hz. A status closes
+  // its window on a multiple of the status period in cycles (1 kHz / 10 Hz:
+  // 100, ending at seq 99, 199, ...); at 20 Hz half of them would end at 49, 149, ...
   EXPECT_EQ(last.joint_name[4], "elbow_flexion");
+  int after_reloads = 0;
+  for (const auto& s : statuses) {
+    if (s.state == exodaq::status_t::STATE_STOPPING) continue;  // the final one, any seq
+    EXPECT_EQ((s.seq + 1) % 100, 0)
+        << "status at seq " << s.seq << " after " << s.reloads << " reload(s)";
+    after_reloads += s.reloads > 0 ? 1 : 0;
+  }
+  EXPECT_GT(after_reloads, 0);
 }
