@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -131,12 +132,9 @@ int occurrences(const std::string& text, const std::string& what) {
   return n;
 }
 
+// Within 20 s (the log is flushed once a second).
 bool wait_for(const std::string& path, const std::string& text, int count = 1) {
-  for (int i = 0; i < 2000; ++i) {  // 20 s: the log is flushed once a second
-    if (occurrences(test::read_file(path), text) >= count) return true;
-    std::this_thread::sleep_for(10ms);
-  }
-  return false;
+  return test::wait_until([&] { return occurrences(test::read_file(path), text) >= count; });
 }
 
 // The statuses recorded so far.
@@ -148,13 +146,11 @@ std::vector<exodaq::status_t> statuses_in(const std::string& file) {
 }
 
 bool wait_for_status(const std::string& file, int reloads) {
-  for (int i = 0; i < 2000; ++i) {
-    for (const auto& s : statuses_in(file)) {
-      if (s.reloads == reloads) return true;
-    }
-    std::this_thread::sleep_for(10ms);
-  }
-  return false;
+  return test::wait_until([&] {
+    const auto all = statuses_in(file);
+    return std::any_of(all.begin(), all.end(),
+                       [reloads](const exodaq::status_t& s) { return s.reloads == reloads; });
+  });
 }
 }  // namespace
 
