@@ -207,6 +207,30 @@ std::int64_t expect_every_board_sample_once(const LoopRun& r, const SteppedClock
   return late;
 }
 
+// The sim's free-running board (drift, phase as free_running_sim) and the loop
+// held off for `stall_ns` at its first wake `stall_at_ms` in, run for `cycles`
+// cycles and checked with expect_every_board_sample_once.
+struct SimStall {
+  LoopRun run;
+  drivers::SimSource* sim = nullptr;
+  SteppedClock* clock = nullptr;
+  std::int64_t late = 0;  // LATE cycles
+};
+
+SimStall run_sim_stall(double drift_ppm, double phase, std::int64_t stall_at_ms,
+                       std::int64_t stall_ns, std::int64_t cycles) {
+  SimStall s;
+  auto src = free_running_sim(drift_ppm, phase);
+  s.sim = src.get();
+  auto clock = std::make_unique<SteppedClock>(kT0);
+  s.clock = clock.get();
+  s.clock->stall_at = kT0 + stall_at_ms * kMs;
+  s.clock->stall_ns = stall_ns;
+  s.run = run_loop(std::move(src), std::move(clock), *s.clock, cycles);
+  s.late = expect_every_board_sample_once(s.run, *s.clock, &s.sim->rig(), s.sim->start_mono_ns());
+  return s;
+}
+
 }  // namespace
 
 // The loop held off for 1, 5 and 50 ms while a free-running board (the sim's
@@ -217,34 +241,25 @@ std::int64_t expect_every_board_sample_once(const LoopRun& r, const SteppedClock
 TEST(Lossless, AFreeRunningBoardsSamplesAreAllPublishedAfterALoopStall) {
   for (const std::int64_t stall_ms : {1, 5, 50}) {
     SCOPED_TRACE(stall_ms);
-    auto src = free_running_sim(0.0, 0.0);
-    drivers::SimSource* sim = src.get();
-    auto clock = std::make_unique<SteppedClock>(kT0);
-    SteppedClock* c = clock.get();
-    c->stall_at = kT0 + 300 * kMs;
-    c->stall_ns = stall_ms * kMs;
-    const LoopRun r = run_loop(std::move(src), std::move(clock), *c, 800);
-
-    const std::int64_t late =
-        expect_every_board_sample_once(r, *c, &sim->rig(), sim->start_mono_ns());
+    const SimStall s = run_sim_stall(0.0, 0.0, 300, stall_ms * kMs, 800);
     // The stall's wake comes stall + 20 µs after its deadline: its own sample
     // and the stall_ms the board took meanwhile are waiting; all but the
     // newest are more than a period old.
     std::printf(
         "LOSSLESS sim stall %lld ms: %lld cycles, %lld caught up in one wake, %lld LATE, %lld "
         "overruns, superseded %lld, missing %lld\n",
-        static_cast<long long>(stall_ms), static_cast<long long>(r.acq->cycles()),
-        static_cast<long long>(r.acq->caught_up_samples()), static_cast<long long>(late),
-        static_cast<long long>(r.acq->overruns()),
-        static_cast<long long>(sim->stats().superseded_samples),
-        static_cast<long long>(sim->stats().missing_samples));
-    EXPECT_EQ(late, stall_ms);
-    EXPECT_EQ(r.acq->caught_up_samples(), stall_ms);
-    EXPECT_EQ(r.acq->backlog_wakes(), 0);
-    EXPECT_GE(r.acq->overruns(), 1);
-    EXPECT_EQ(sim->stats().superseded_samples, 0);
-    EXPECT_EQ(sim->stats().missing_samples, 0);
-    EXPECT_EQ(sim->stats().seq_gaps, 0);
+        static_cast<long long>(stall_ms), static_cast<long long>(s.run.acq->cycles()),
+        static_cast<long long>(s.run.acq->caught_up_samples()), static_cast<long long>(s.late),
+        static_cast<long long>(s.run.acq->overruns()),
+        static_cast<long long>(s.sim->stats().superseded_samples),
+        static_cast<long long>(s.sim->stats().missing_samples));
+    EXPECT_EQ(s.late, stall_ms);
+    EXPECT_EQ(s.run.acq->caught_up_samples(), stall_ms);
+    EXPECT_EQ(s.run.acq->backlog_wakes(), 0);
+    EXPECT_GE(s.run.acq->overruns(), 1);
+    EXPECT_EQ(s.sim->stats().superseded_samples, 0);
+    EXPECT_EQ(s.sim->stats().missing_samples, 0);
+    EXPECT_EQ(s.sim->stats().seq_gaps, 0);
   }
 }
 
@@ -252,26 +267,20 @@ TEST(Lossless, AFreeRunningBoardsSamplesAreAllPublishedAfterALoopStall) {
 // samples come out over the following wakes, bounded per wake, still every one
 // of them once and in order, and the wakes that left a backlog are counted.
 TEST(Lossless, ABacklogBeyondTheCatchUpBoundIsCarriedToTheNextWakes) {
-  auto src = free_running_sim(0.0, 0.0);
-  drivers::SimSource* sim = src.get();
-  auto clock = std::make_unique<SteppedClock>(kT0);
-  SteppedClock* c = clock.get();
-  c->stall_at = kT0 + 300 * kMs;
-  c->stall_ns = 200 * kMs;
-  const LoopRun r = run_loop(std::move(src), std::move(clock), *c, 900);
-  const std::int64_t late =
-      expect_every_board_sample_once(r, *c, &sim->rig(), sim->start_mono_ns());
+  const SimStall s = run_sim_stall(0.0, 0.0, 300, 200 * kMs, 900);
   std::printf(
       "LOSSLESS sim stall 200 ms: %lld cycles, %lld caught up, %lld wakes left a backlog, %lld "
       "LATE, superseded %lld, missing %lld\n",
-      static_cast<long long>(r.acq->cycles()), static_cast<long long>(r.acq->caught_up_samples()),
-      static_cast<long long>(r.acq->backlog_wakes()), static_cast<long long>(late),
-      static_cast<long long>(sim->stats().superseded_samples),
-      static_cast<long long>(sim->stats().missing_samples));
-  EXPECT_GE(late, 200);
-  EXPECT_GE(r.acq->backlog_wakes(), 3);  // 201 samples at 64 a wake: the stall's wake and 3 more
-  EXPECT_EQ(sim->stats().superseded_samples, 0);
-  EXPECT_EQ(sim->stats().missing_samples, 0);
+      static_cast<long long>(s.run.acq->cycles()),
+      static_cast<long long>(s.run.acq->caught_up_samples()),
+      static_cast<long long>(s.run.acq->backlog_wakes()), static_cast<long long>(s.late),
+      static_cast<long long>(s.sim->stats().superseded_samples),
+      static_cast<long long>(s.sim->stats().missing_samples));
+  EXPECT_GE(s.late, 200);
+  // 201 samples at 64 a wake: the stall's wake and 3 more.
+  EXPECT_GE(s.run.acq->backlog_wakes(), 3);
+  EXPECT_EQ(s.sim->stats().superseded_samples, 0);
+  EXPECT_EQ(s.sim->stats().missing_samples, 0);
 }
 
 // A board whose clock runs 500 ppm slow or fast against the loop's, a third of
@@ -281,39 +290,31 @@ TEST(Lossless, ABacklogBeyondTheCatchUpBoundIsCarriedToTheNextWakes) {
 TEST(Lossless, ADriftingBoardClockLosesNothingAndInventsNothing) {
   for (const double drift : {500.0, -500.0}) {
     SCOPED_TRACE(drift);
-    auto src = free_running_sim(drift, 0.3);
-    drivers::SimSource* sim = src.get();
-    auto clock = std::make_unique<SteppedClock>(kT0);
-    SteppedClock* c = clock.get();
-    c->stall_at = kT0 + 1500 * kMs;
-    c->stall_ns = 5 * kMs;
-    const LoopRun r = run_loop(std::move(src), std::move(clock), *c, 3500);
     // The stall's samples went out late (the slow board's lag behind the loop
     // leaves four of them over a period old, the fast board's five or more).
-    const std::int64_t late =
-        expect_every_board_sample_once(r, *c, &sim->rig(), sim->start_mono_ns());
-    EXPECT_GE(late, 4);
-    EXPECT_EQ(sim->stats().superseded_samples, 0);
-    EXPECT_EQ(sim->stats().missing_samples, 0);
-    EXPECT_EQ(sim->stats().seq_gaps, 0);
+    const SimStall s = run_sim_stall(drift, 0.3, 1500, 5 * kMs, 3500);
+    EXPECT_GE(s.late, 4);
+    EXPECT_EQ(s.sim->stats().superseded_samples, 0);
+    EXPECT_EQ(s.sim->stats().missing_samples, 0);
+    EXPECT_EQ(s.sim->stats().seq_gaps, 0);
     std::printf(
         "LOSSLESS sim drift %+.0f ppm, stall 5 ms: %lld cycles in %zu wakes, %lld caught "
         "up, %lld LATE, superseded %lld, missing %lld\n",
-        drift, static_cast<long long>(r.acq->cycles()), c->wakes.size(),
-        static_cast<long long>(r.acq->caught_up_samples()), static_cast<long long>(late),
-        static_cast<long long>(sim->stats().superseded_samples),
-        static_cast<long long>(sim->stats().missing_samples));
+        drift, static_cast<long long>(s.run.acq->cycles()), s.clock->wakes.size(),
+        static_cast<long long>(s.run.acq->caught_up_samples()), static_cast<long long>(s.late),
+        static_cast<long long>(s.sim->stats().superseded_samples),
+        static_cast<long long>(s.sim->stats().missing_samples));
     // 3500 samples at 500 ppm: the phase slips by 1.75 periods, so some wake
     // went without a sample (slow) or with two (fast, beyond the stall's five).
     std::int64_t empty_wakes = 0;
-    for (std::size_t w = 0; w + 1 < c->wakes.size(); ++w)
-      empty_wakes += c->wakes[w + 1].first_seq == c->wakes[w].first_seq ? 1 : 0;
+    for (std::size_t w = 0; w + 1 < s.clock->wakes.size(); ++w)
+      empty_wakes += s.clock->wakes[w + 1].first_seq == s.clock->wakes[w].first_seq ? 1 : 0;
     if (drift > 0) {
       EXPECT_GE(empty_wakes, 1);
-      EXPECT_EQ(r.acq->caught_up_samples(), late);  // only the stall's wake had more than one
+      EXPECT_EQ(s.run.acq->caught_up_samples(), s.late);  // only the stall's wake had more than one
     } else {
       EXPECT_EQ(empty_wakes, 0);
-      EXPECT_GT(r.acq->caught_up_samples(), 5);
+      EXPECT_GT(s.run.acq->caught_up_samples(), 5);
     }
   }
 }

@@ -3,34 +3,27 @@
 // reproduction of issue 15.4 (lock_memory, fault_after_ms, status_rate_hz,
 // publish_raw, a renamed joint, logging.level) is a change reload reports.
 #include <gtest/gtest.h>
-#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
-#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <set>
-#include <sstream>
 
 #include "exodaq/config/content_hash.hpp"
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/config/setting_classes.hpp"
+#include "process.hpp"
 
 using namespace exodaq::config;
 
 namespace {
 const std::string kConfigDir = std::string(EXODAQ_SOURCE_DIR) + "/config/";
 
-std::string read(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using exodaq::test::read_file;
 
 std::string sim_text() {
-  return read(kConfigDir + "sim.yaml");
+  return read_file(kConfigDir + "sim.yaml");
 }
 
 ServiceConfig load(const std::string& text) {
@@ -73,8 +66,8 @@ TEST(ContentHash, IsTheSha256OfTheBytes) {
   EXPECT_EQ(sha256_hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
   const ServiceConfig c = load_service_config(kConfigDir + "sim.yaml");
   EXPECT_EQ(c.config_sha256, sha256_hex(sim_text()));
-  EXPECT_EQ(c.calibration_sha256, sha256_hex(read(c.calibration_path)));
-  EXPECT_EQ(c.model_sha256, sha256_hex(read(c.model_path)));
+  EXPECT_EQ(c.calibration_sha256, sha256_hex(read_file(c.calibration_path)));
+  EXPECT_EQ(c.model_sha256, sha256_hex(read_file(c.model_path)));
 }
 
 TEST(SettingClasses, EverySettingPrintConfigShowsIsClassedOnce) {
@@ -112,11 +105,8 @@ TEST(SettingClasses, TheIssueReproductionsAreEachReported) {
   text = replaced(text, "publish_raw: true", "publish_raw: false");
   text = replaced(text, "level: info", "level: debug");
   // A renamed joint: the model file, copied with one name changed.
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("exodaq_setting_classes_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  const std::string model = (dir / "model.yaml").string();
-  std::ofstream(model) << std::regex_replace(read(kConfigDir + "models/macaque_exo.yaml"),
+  const std::string model = exodaq::test::make_temp_dir("setting-classes") + "/model.yaml";
+  std::ofstream(model) << std::regex_replace(read_file(kConfigDir + "models/macaque_exo.yaml"),
                                              std::regex("elbow_flexion"), "elbow");
   text = replaced(text, "model: models/macaque_exo.yaml", "model: " + model);
   const ServiceConfig after = load(text);
@@ -145,7 +135,6 @@ TEST(SettingClasses, TheIssueReproductionsAreEachReported) {
   EXPECT_NE(find(changes, "model.sha256"), nullptr);
   EXPECT_EQ(changes.size(), expected.size() + 1) << describe_changes(changes);
   EXPECT_NE(describe_changes(changes).find("loop.lock_memory (false -> true)"), std::string::npos);
-  std::filesystem::remove_all(dir);
 }
 
 TEST(SettingClasses, ComparedByValueNotByText) {

@@ -33,7 +33,9 @@ namespace {
 
 struct Stream {
   std::vector<exodaq::joint_state_t> joints;  // receive order
+  std::vector<std::int64_t> joint_received;   // the recorder's receive mono ns of each joint state
   std::vector<exodaq::palm_pose_t> palms;
+  std::vector<exodaq::encoder_raw_t> raws;
   std::vector<exodaq::status_t> statuses;
   std::vector<std::int64_t> run_order;  // run_id of every message, receive order
 };
@@ -43,7 +45,11 @@ Stream decode_all(const std::vector<test::RecordedMessage>& recorded, const std:
   for (const auto& m : recorded) {
     if (m.channel == prefix + "EXO_JOINT_STATE") {
       s.joints.push_back(test::decode<exodaq::joint_state_t>(m.data));
+      s.joint_received.push_back(m.time);
       s.run_order.push_back(s.joints.back().run_id);
+    } else if (m.channel == prefix + "EXO_ENCODER_RAW") {
+      s.raws.push_back(test::decode<exodaq::encoder_raw_t>(m.data));
+      s.run_order.push_back(s.raws.back().run_id);
     } else if (m.channel == prefix + "EXO_PALM_POSE") {
       s.palms.push_back(test::decode<exodaq::palm_pose_t>(m.data));
       s.run_order.push_back(s.palms.back().run_id);
@@ -323,21 +329,11 @@ TEST(ProcessFault, FreeRunningBoardThroughALoopStallLosesNothing) {
   recorder.wait(5s);
   ASSERT_EQ(code, 0) << test::read_file(dir + "/d.err");
 
-  const auto recorded = test::read_recorder_file(dir + "/rec.bin");
-  std::vector<exodaq::joint_state_t> joints;
-  std::vector<std::int64_t> received;  // receive mono ns of each joint_state
-  std::vector<exodaq::encoder_raw_t> raws;
-  std::vector<exodaq::status_t> statuses;
-  for (const auto& m : recorded) {
-    if (m.channel == prefix + "EXO_JOINT_STATE") {
-      joints.push_back(test::decode<exodaq::joint_state_t>(m.data));
-      received.push_back(m.time);
-    } else if (m.channel == prefix + "EXO_ENCODER_RAW") {
-      raws.push_back(test::decode<exodaq::encoder_raw_t>(m.data));
-    } else if (m.channel == prefix + "EXO_STATUS") {
-      statuses.push_back(test::decode<exodaq::status_t>(m.data));
-    }
-  }
+  const Stream s = decode_all(test::read_recorder_file(dir + "/rec.bin"), prefix);
+  const auto& joints = s.joints;
+  const auto& received = s.joint_received;
+  const auto& raws = s.raws;
+  const auto& statuses = s.statuses;
   ASSERT_GT(joints.size(), 3000u);
   ASSERT_FALSE(statuses.empty());
   const exodaq::status_t& last = statuses.back();

@@ -168,8 +168,14 @@ TEST(Instance, ForeignRunWhileRunningFlagsSamplesAndDegrades) {
   recorder.signal(SIGTERM);
   recorder.wait(5s);
   const std::string err = test::read_file(dir + "/daemon.err");
-  EXPECT_NE(err.find(std::string("run id ") + kForeignRun), std::string::npos) << err;
-  EXPECT_NE(err.find("no longer heard"), std::string::npos) << err;
+  // An error names the other run and the channel it was heard on (issue 15.1:
+  // "logs an error"), a warning its end.
+  EXPECT_NE(err.find("error another publisher on " + prefix + "EXO_STATUS: run id " + kForeignRun),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find(std::string("warning run id ") + kForeignRun + " no longer heard"),
+            std::string::npos)
+      << err;
 
   const auto foreign = static_cast<std::int64_t>(*msg::parse_run_id(kForeignRun));
   std::int64_t flagged = 0;

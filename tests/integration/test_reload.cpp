@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -125,15 +126,15 @@ TEST(Reload, SighupAppliesANewCalibrationWithoutAGapAndRejectsABadOne) {
 }
 
 namespace {
+int occurrences(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+// Within 20 s (the log is flushed once a second).
 bool wait_for(const std::string& path, const std::string& text, int count = 1) {
-  for (int i = 0; i < 2000; ++i) {  // 20 s: the log is flushed once a second
-    const std::string t = test::read_file(path);
-    int n = 0;
-    for (auto at = t.find(text); at != std::string::npos; at = t.find(text, at + 1)) ++n;
-    if (n >= count) return true;
-    std::this_thread::sleep_for(10ms);
-  }
-  return false;
+  return test::wait_until([&] { return occurrences(test::read_file(path), text) >= count; });
 }
 
 // The statuses recorded so far.
@@ -145,19 +146,11 @@ std::vector<exodaq::status_t> statuses_in(const std::string& file) {
 }
 
 bool wait_for_status(const std::string& file, int reloads) {
-  for (int i = 0; i < 2000; ++i) {
-    for (const auto& s : statuses_in(file)) {
-      if (s.reloads == reloads) return true;
-    }
-    std::this_thread::sleep_for(10ms);
-  }
-  return false;
-}
-
-int occurrences(const std::string& text, const std::string& what) {
-  int n = 0;
-  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
-  return n;
+  return test::wait_until([&] {
+    const auto all = statuses_in(file);
+    return std::any_of(all.begin(), all.end(),
+                       [reloads](const exodaq::status_t& s) { return s.reloads == reloads; });
+  });
 }
 }  // namespace
 
@@ -236,6 +229,16 @@ TEST(Reload, EveryRestartOnlyChangeIsWarnedOnEverySighupAndStatusShowsTheFilesIn
   EXPECT_EQ(last.calibration_sha256, config::sha256_hex(test::read_file(started.calibration_path)));
   EXPECT_EQ(last.calibration_provenance, "hand-written for the simulated rig, 2026-11-22");
   // The restart-only settings kept their running values: the joint names
-  // published are the start-up ones, statuses still at 10 Hz.
+  // published are the start-up ones, statuses still at 10 Hz. A status closes
+  // its window on a multiple of the status period in cycles (1 kHz / 10 Hz:
+  // 100, ending at seq 99, 199, ...); at 20 Hz half of them would end at 49, 149, ...
   EXPECT_EQ(last.joint_name[4], "elbow_flexion");
+  int after_reloads = 0;
+  for (const auto& s : statuses) {
+    if (s.state == exodaq::status_t::STATE_STOPPING) continue;  // the final one, any seq
+    EXPECT_EQ((s.seq + 1) % 100, 0)
+        << "status at seq " << s.seq << " after " << s.reloads << " reload(s)";
+    after_reloads += s.reloads > 0 ? 1 : 0;
+  }
+  EXPECT_GT(after_reloads, 0);
 }

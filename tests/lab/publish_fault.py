@@ -38,16 +38,13 @@ import io
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import netlab  # noqa: E402
-from run_lab import RECEIVE_URL, PUBLISH_URL, Checks, wait_line, write_config  # noqa: E402
+from run_lab import RECEIVE_URL, PUBLISH_URL, Checks, run_in_lab, wait_line, write_config  # noqa: E402
 
 ROUTE = ["224.0.0.0/4", "dev", "eth0"]
 STATE_NAMES = {0: "starting", 1: "homing", 2: "running", 3: "degraded", 4: "fault", 5: "stopping"}
@@ -237,29 +234,8 @@ def main():
     ap.add_argument("--work-dir")
     ap.add_argument("--report-json")
     a = ap.parse_args()
-    work = a.work_dir or tempfile.mkdtemp(prefix="exodaq-pubfault-")
-    if a.work_dir:
-        shutil.rmtree(work, ignore_errors=True)
-        os.makedirs(work)
-    try:
-        lab = netlab.NetLab(["rig", "bmi"])
-    except netlab.LabUnavailable as e:
-        print(f"publish_fault: SKIP: cannot build the namespace lab: {e}")
-        return 77
-    with lab:
-        checks, report = run(lab, a, work)
-    if report:
-        print("publish_fault: " + json.dumps(report))
-        if a.report_json:
-            with open(a.report_json, "w") as f:
-                json.dump(report, f, indent=1)
-    checks.print()
-    print("publish_fault: PASSED" if checks.passed else "publish_fault: FAILED")
-    if checks.passed and not a.work_dir:
-        shutil.rmtree(work, ignore_errors=True)
-    else:
-        print(f"publish_fault: logs and summaries are in {work}")
-    return 0 if checks.passed else 1
+    return run_in_lab("publish_fault", a, ["rig", "bmi"], lambda lab, work: run(lab, a, work),
+                      lambda report: print("publish_fault: " + json.dumps(report)))
 
 
 if __name__ == "__main__":

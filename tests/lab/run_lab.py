@@ -373,36 +373,47 @@ def main():
         print("run_lab: lcm-logger not found (Debian package liblcm-bin; scripts/setup installs it)")
         return 1
 
+    decoders = [f"d{i + 1}" for i in range(a.hosts)]
+    return run_in_lab("run_lab", a, ["rig", "rec"] + decoders,
+                      lambda lab, work: run(lab, a, work, decoders), print_report,
+                      snooping=not a.no_snooping, settle=not a.early_join)
+
+
+def run_in_lab(name, a, hosts, body, report_printer, **lab_options):
+    """A lab driver's frame: a work directory (a.work_dir, emptied, or a
+    temporary one), the namespace lab of `hosts` (removed on any exit, also on
+    SIGINT/SIGTERM/SIGHUP), checks, report = body(lab, work), the report
+    printed and written to a.report_json, the checks printed. The work
+    directory stays when the checks failed or a.work_dir was given.
+    Returns the exit code: 0 passed, 1 failed, 77 skipped (no namespaces here)."""
     def stop(signum, _frame):
-        raise SystemExit(f"run_lab: signal {signum}: cleaning up")
+        raise SystemExit(f"{name}: signal {signum}: cleaning up")
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, stop)
 
-    work = a.work_dir or tempfile.mkdtemp(prefix="exodaq-lab-")
+    work = a.work_dir or tempfile.mkdtemp(prefix=f"exodaq-{name}-")
     if a.work_dir:
         shutil.rmtree(work, ignore_errors=True)
         os.makedirs(work)
-    decoders = [f"d{i + 1}" for i in range(a.hosts)]
     try:
-        lab = netlab.NetLab(["rig", "rec"] + decoders, snooping=not a.no_snooping,
-                            settle=not a.early_join)
+        lab = netlab.NetLab(hosts, **lab_options)
     except netlab.LabUnavailable as e:
-        print(f"run_lab: SKIP: cannot build the namespace lab: {e}")
+        print(f"{name}: SKIP: cannot build the namespace lab: {e}")
         return 77
     with lab:
-        checks, report = run(lab, a, work, decoders)
-    print(f"run_lab: lab {lab.tag} removed")
+        checks, report = body(lab, work)
+    print(f"{name}: lab {lab.tag} removed")
     if report:
-        print_report(report)
+        report_printer(report)
         if a.report_json:
             with open(a.report_json, "w") as f:
                 json.dump(report, f, indent=1)
     checks.print()
-    print("run_lab: PASSED" if checks.passed else "run_lab: FAILED")
+    print(f"{name}: PASSED" if checks.passed else f"{name}: FAILED")
     if checks.passed and not a.work_dir:
         shutil.rmtree(work, ignore_errors=True)
     else:
-        print(f"run_lab: logs, summaries and the lcm-logger file are in {work}")
+        print(f"{name}: logs and summaries are in {work}")
     return 0 if checks.passed else 1
 
 

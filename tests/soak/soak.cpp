@@ -21,7 +21,6 @@
 // ON + OFF seconds during the run. Lateness and the LATE samples are reported.
 // Writes soak.json and soak.txt to --out. scripts/soak is the front end.
 #include <lcm/lcm.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -41,6 +40,7 @@
 #include <thread>
 #include <vector>
 
+#include "exodaq/common/clock_now.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
@@ -103,9 +103,7 @@ void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
     ++s->joints;
     ++s->run_ids[m.run_id];
     s->joint_sample_flags_or |= m.sample_flags;
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    const std::int64_t received = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+    const std::int64_t received = exodaq::mono_now_ns();
     const bool late = (m.sample_flags & exodaq::joint_state_t::SAMPLE_LATE) != 0;
     if (late) {
       ++s->late;

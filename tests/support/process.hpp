@@ -4,6 +4,7 @@
 #include <sys/types.h>
 
 #include <chrono>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -48,6 +49,10 @@ struct RunResult {
 RunResult run(const std::vector<std::string>& argv,
               std::chrono::milliseconds timeout = std::chrono::seconds(60),
               const std::map<std::string, std::string>& env = {});
+
+// Polls `done` every 10 ms: true once it holds, false when `timeout` passed first.
+bool wait_until(const std::function<bool()>& done,
+                std::chrono::milliseconds timeout = std::chrono::seconds(20));
 
 std::string read_file(const std::string& path);
 // A fresh directory under $TMPDIR (or /tmp), removed by nobody: test logs stay for inspection.
