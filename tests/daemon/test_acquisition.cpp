@@ -171,6 +171,17 @@ Msg decode(const std::vector<std::uint8_t>& bytes) {
   EXPECT_GT(m.decode(bytes.data(), 0, static_cast<int>(bytes.size())), 0);
   return m;
 }
+
+constexpr std::int64_t kT0 = 100 * 1'000'000'000LL;  // the first hand-driven deadline
+
+// Runs cycles [from, to) by hand, each woken 20 us after its deadline, and
+// delivers their messages to the sink.
+void run_cycles(core::Acquisition& acq, int from, int to) {
+  for (int k = from; k < to; ++k) {
+    ASSERT_TRUE(acq.run_cycle(kT0 + k * kMs, kT0 + k * kMs + 20'000));
+    acq.publisher().drain();
+  }
+}
 }  // namespace
 
 TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
@@ -178,11 +189,7 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
   auto acq = make_acquisition(std::make_unique<RampSource>(), sink);
   sink->keep = true;
   acq->prepare_for_manual_cycles();
-  const std::int64_t t0 = 100 * 1'000'000'000LL;
-  for (int k = 0; k < 1000; ++k) {
-    ASSERT_TRUE(acq->run_cycle(t0 + k * kMs, t0 + k * kMs + 20'000));
-    acq->publisher().drain();
-  }
+  run_cycles(*acq, 0, 1000);
   // Exactly one of each per cycle, status every 100 cycles; nothing before the first cycle.
   EXPECT_EQ(sink->counts[0], 1000);
   EXPECT_EQ(sink->counts[1], 1000);
@@ -223,7 +230,7 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
       const auto js = decode<exodaq::joint_state_t>(bytes);
       EXPECT_EQ(js.seq, expected_seq++);
       EXPECT_EQ(js.run_id, acq->run_id());
-      EXPECT_EQ(js.mono_ns, t0 + js.seq * kMs);
+      EXPECT_EQ(js.mono_ns, kT0 + js.seq * kMs);
       if (js.seq >= 5) {
         for (int j = 0; j < 6; ++j) ASSERT_TRUE(js.homed[j]) << "joint " << j << " seq " << js.seq;
       } else {
@@ -252,11 +259,7 @@ TEST(Acquisition, AFinalStatusAfterAnEmptyWindowRepeatsItsSeq) {
   auto acq = make_acquisition(std::make_unique<RampSource>(), sink);
   sink->keep = true;
   acq->prepare_for_manual_cycles();
-  const std::int64_t t0 = 100 * 1'000'000'000LL;
-  for (int k = 0; k < 200; ++k) {
-    ASSERT_TRUE(acq->run_cycle(t0 + k * kMs, t0 + k * kMs + 20'000));
-    acq->publisher().drain();
-  }
+  run_cycles(*acq, 0, 200);
   acq->stop();
   acq->publisher().drain();
   std::vector<exodaq::status_t> status;
@@ -283,14 +286,12 @@ TEST(Acquisition, AForeignRunFlagsEverySampleAndDegradesUntilCleared) {
   auto acq = make_acquisition(std::make_unique<RampSource>(), sink);
   sink->keep = true;
   acq->prepare_for_manual_cycles();
-  const std::int64_t t0 = 100 * 1'000'000'000LL;
   constexpr std::int64_t kForeign = 0x0123456789abcdef;
-  for (int k = 0; k < 600; ++k) {
-    if (k == 200) acq->set_foreign_run_id(kForeign);
-    if (k == 400) acq->set_foreign_run_id(0);
-    ASSERT_TRUE(acq->run_cycle(t0 + k * kMs, t0 + k * kMs + 20'000));
-    acq->publisher().drain();
-  }
+  run_cycles(*acq, 0, 200);
+  acq->set_foreign_run_id(kForeign);
+  run_cycles(*acq, 200, 400);
+  acq->set_foreign_run_id(0);
+  run_cycles(*acq, 400, 600);
   int flagged = 0;
   for (const auto& [channel, bytes] : sink->kept) {
     if (channel == exodaq::msg::Kind::kJointState) {
