@@ -147,7 +147,14 @@ constexpr const char* kStatusCounterColumns[] = {"overruns",
                                                  "clock_max_error_us",
                                                  "clock_offset_us",
                                                  "utime_correction_us",
-                                                 "clock_steps"};
+                                                 "clock_steps",
+                                                 "config_path",
+                                                 "config_sha256",
+                                                 "calibration_path",
+                                                 "calibration_sha256",
+                                                 "calibration_provenance",
+                                                 "reloads",
+                                                 "foreign_run_id"};
 constexpr const char* kStatusJointSuffixes[] = {"_homing",       "_flags",
                                                 "_glitches",     "_lost_count_events",
                                                 "_stale_events", "_out_of_range_events"};
@@ -183,6 +190,12 @@ void status_values(const status_t& m, std::vector<std::string>& out) {
     out.push_back(number(v));
   }
   out.push_back(num(m.clock_steps));
+  for (const std::string* v : {&m.config_path, &m.config_sha256, &m.calibration_path,
+                               &m.calibration_sha256, &m.calibration_provenance}) {
+    out.push_back(*v);
+  }
+  out.push_back(num(m.reloads));
+  out.push_back(run_id_text(m.foreign_run_id));
   each(m.homing, out, kNum);
   each(m.joint_flags, out, kNum);
   each(m.glitches, out, kNum);

@@ -330,7 +330,10 @@ def run_status_json(fixture, url, tool):
     s = json.loads(r.stdout)
     want = {"channel": prefix + "EXO_STATUS", "rig": "sim-rig, bench 2", "state": 3,
             "run_id": "fedcba9876543211", "overruns": 3, "clock_synchronised": 1,
-            "wrist_pronation_homing": 2}
+            "wrist_pronation_homing": 2, "config_path": "/etc/exodaq/exodaqd.yaml",
+            "calibration_sha256":
+                "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855",
+            "reloads": 3, "foreign_run_id": "0123456789abcdef"}
     for k, v in want.items():
         if s.get(k) != v:
             fail("status --json: %s = %r, expected %r" % (k, s.get(k), v))

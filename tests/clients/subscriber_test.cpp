@@ -138,9 +138,13 @@ TEST(CsvSchema, GoldenHeadersOfEachKind) {
             "index_count16_ch2,index_count16_ch3,index_count16_ch4,index_count16_ch5,"
             "index_latched,index_count_valid,board_state,board_errors,source_flags,wall_ns");
   const auto status = msg::csv::header(msg::Kind::kStatus, j);
-  EXPECT_EQ(status.size(), 4u + 4 + 9 + 20 + 6 * 6);
+  EXPECT_EQ(status.size(), 4u + 4 + 9 + 27 + 6 * 6);
   EXPECT_EQ(status[4], "rig");
-  EXPECT_EQ(status[37], "shoulder_azimuth_homing");
+  EXPECT_EQ(status[36], "clock_steps");
+  EXPECT_EQ(joined(std::vector<std::string>(status.begin() + 37, status.begin() + 44)),
+            "config_path,config_sha256,calibration_path,calibration_sha256,"
+            "calibration_provenance,reloads,foreign_run_id");
+  EXPECT_EQ(status[44], "shoulder_azimuth_homing");
   EXPECT_EQ(status.back(), "forearm_pronation_out_of_range_events");
   // Every kind: no name twice in one row.
   for (const auto k : msg::kAllKinds) {

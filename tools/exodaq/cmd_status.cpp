@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <ctime>
 #include <optional>
+#include <set>
 #include <string>
 
 #include "clock_text.hpp"
@@ -100,21 +101,20 @@ void print_json(const std::string& channel, const status_t& s) {
   std::vector<std::string> values;
   msg::csv::append_values(m, values);
   std::string out = "{\n  \"channel\": " + json_string(channel);
+  static const std::set<std::string> kText = {"rig",
+                                              "message",
+                                              "source",
+                                              "run_id",
+                                              "config_path",
+                                              "config_sha256",
+                                              "calibration_path",
+                                              "calibration_sha256",
+                                              "calibration_provenance",
+                                              "foreign_run_id"};
   for (std::size_t i = 0; i < names.size(); ++i) {
-    const bool text =
-        names[i] == "rig" || names[i] == "message" || names[i] == "source" || names[i] == "run_id";
     out += ",\n  " + json_string(names[i]) + ": " +
-           (text ? json_string(values[i]) : json_value(values[i]));
+           (kText.count(names[i]) != 0 ? json_string(values[i]) : json_value(values[i]));
   }
-  // The files in effect (not CSV columns: export keeps its schema).
-  for (const auto& [name, value] : {std::pair{"config_path", &s.config_path},
-                                    {"config_sha256", &s.config_sha256},
-                                    {"calibration_path", &s.calibration_path},
-                                    {"calibration_sha256", &s.calibration_sha256},
-                                    {"calibration_provenance", &s.calibration_provenance}}) {
-    out += ",\n  " + json_string(name) + ": " + json_string(*value);
-  }
-  out += ",\n  \"reloads\": " + std::to_string(s.reloads);
   std::printf("%s\n}\n", out.c_str());
 }
 
