@@ -176,8 +176,15 @@ std::optional<MapReader> MapReader::optional_map(const std::string& key) {
 }
 
 std::string MapReader::string(const std::string& key) {
-  const YAML::Node n = child(key);
-  if (!n.IsScalar()) fail(n, "'" + key + "' must be a string, found " + kind_name(n));
+  return to_string(child(key), key);
+}
+
+std::string MapReader::to_string(const YAML::Node& n, const std::string& what) const {
+  if (!n.IsScalar()) fail(n, "'" + what + "' must be a string, found " + kind_name(n));
+  if (const auto problem = files::find_text_problem(n.Scalar())) {
+    fail(n, "'" + what + "' decodes to " + problem->what.substr(0, problem->what.find(" at ")) +
+                ": write the character itself, not the escape \\_ or \\N");
+  }
   return n.Scalar();
 }
 

@@ -65,9 +65,7 @@ Calibration parse(const YAML::Node& root, const std::string& file) {
     if (auto inputs = prov->optional_child("inputs")) {
       if (!inputs->IsSequence()) prov->fail(*inputs, "'inputs' must be a list of strings");
       for (std::size_t i = 0; i < inputs->size(); ++i) {
-        const YAML::Node s = (*inputs)[i];
-        if (!s.IsScalar()) prov->fail(s, "'inputs[" + std::to_string(i) + "]' must be a string");
-        p.inputs.push_back(s.Scalar());
+        p.inputs.push_back(prov->to_string((*inputs)[i], "inputs[" + std::to_string(i) + "]"));
       }
     }
     if (prov->has("rms_before_mm")) p.rms_before_m = prov->number("rms_before_mm") * kMmToM;

@@ -87,6 +87,9 @@ class MapReader {
   [[noreturn]] void fail_key(const std::string& key, const std::string& what) const;
 
   // Scalar conversion helpers usable on any node of this file.
+  // A string scalar as decoded, valid UTF-8 (yaml-cpp decodes the escapes \_
+  // and \N to single bytes that are not).
+  std::string to_string(const YAML::Node& n, const std::string& what) const;
   double to_number(const YAML::Node& n, const std::string& what) const;
   std::int64_t to_integer(const YAML::Node& n, const std::string& what) const;
   std::vector<double> to_numbers(const YAML::Node& n, const std::string& what) const;
