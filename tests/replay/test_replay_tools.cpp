@@ -13,6 +13,8 @@
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <regex>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -47,6 +49,10 @@ struct Live {
   std::string log;
   std::string replay;  // exodaq replay --speed max of `log`
   std::string replay_out;
+  // Cycles the daemon ran and published that lcm-logger did not record (a
+  // datagram dropped on a loaded machine): the replay never sees them, so a
+  // velocity fit spanning one cannot match the live one (recorder_losses).
+  std::set<std::int64_t> recorder_lost;
 };
 Live* g_live = nullptr;
 
@@ -63,6 +69,33 @@ RunResult exodaq(const std::vector<std::string>& args) {
   std::vector<std::string> argv{EXODAQ_TOOL};
   argv.insert(argv.end(), args.begin(), args.end());
   return run(argv, std::chrono::seconds(120));
+}
+
+// The seqs missing from the recording's encoder_raw_t that the daemon did
+// not skip: its log names every skip ("loop overrun at seq S: ..., K
+// deadline(s) skipped" skips S-K ... S-1).
+std::set<std::int64_t> recorder_losses(const std::string& log, const std::string& prefix,
+                                       const std::string& daemon_err) {
+  std::set<std::int64_t> recorded;
+  for (const auto& e : read_log(log)) {
+    if (e.channel != prefix + "EXO_ENCODER_RAW") continue;
+    encoder_raw_t m;
+    if (m.decode(e.data.data(), 0, static_cast<int>(e.data.size())) >= 0) recorded.insert(m.seq);
+  }
+  std::set<std::int64_t> skipped;
+  const std::string text = read_file(daemon_err);
+  const std::regex overrun(R"(loop overrun at seq (\d+): .*?(\d+) deadline)");
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), overrun);
+       it != std::sregex_iterator(); ++it) {
+    const std::int64_t at = std::stoll((*it)[1]);
+    for (std::int64_t k = std::stoll((*it)[2]); k > 0; --k) skipped.insert(at - k);
+  }
+  std::set<std::int64_t> lost;
+  if (recorded.empty()) return lost;
+  for (std::int64_t q = *recorded.begin(); q < *recorded.rbegin(); ++q) {
+    if (recorded.count(q) == 0 && skipped.count(q) == 0) lost.insert(q);
+  }
+  return lost;
 }
 
 class ReplayLive : public ::testing::Test {
@@ -96,6 +129,7 @@ class ReplayLive : public ::testing::Test {
       logger.signal(SIGINT);
       ASSERT_TRUE(logger.wait(std::chrono::seconds(10)).has_value());
     }
+    live->recorder_lost = recorder_losses(live->log, live->prefix, live->dir + "/exodaqd.err");
     live->replay = live->dir + "/replay.lcm";
     const RunResult r = exodaq(
         {"replay", live->log, "--config", live->config, "--out", live->replay, "--speed", "max"});
@@ -118,6 +152,11 @@ std::vector<std::uint8_t> bytes_of(const Msg& m) {
   m.encode(b.data(), 0, static_cast<int>(b.size()));
   return b;
 }
+
+std::pair<std::size_t, std::size_t> expect_same_cycles(
+    const std::map<std::int64_t, joint_state_t>& ref_joint,
+    const std::map<std::int64_t, palm_pose_t>& ref_palm, const std::string& replay,
+    const std::string& p, std::int64_t first_seq, bool ref_is_replay, bool whole_run);
 
 TEST_F(ReplayLive, ReproducesLiveJointAndPalmMessagesExactly) {
   const auto live = read_log(g_live->log);
@@ -142,31 +181,16 @@ TEST_F(ReplayLive, ReproducesLiveJointAndPalmMessagesExactly) {
   EXPECT_GT(valid, 1000U);
 
   // Every cycle that the recorder caught on all three channels must match
-  // byte for byte; the only difference allowed is the SAMPLE_REPLAY bit.
-  std::size_t compared = 0;
-  for (const auto& [seq, lj] : live_joint) {
-    if (live_raw.count(seq) == 0 || live_palm.count(seq) == 0) continue;
-    joint_state_t rj = rep_joint.at(seq);
-    ASSERT_EQ(rj.sample_flags & kSampleReplay, kSampleReplay) << "seq " << seq;
-    rj.sample_flags &= ~kSampleReplay;
-    if (bytes_of(rj) != bytes_of(lj)) {
-      ADD_FAILURE() << "joint_state_t differs at seq " << seq << ": utime " << lj.utime << "/"
-                    << rj.utime << " mono " << lj.mono_ns << "/" << rj.mono_ns << " flags0 "
-                    << lj.flags[0] << "/" << rj.flags[0] << " sample_flags " << lj.sample_flags
-                    << "/" << rj.sample_flags << " pos0 " << lj.position[0] << "/" << rj.position[0]
-                    << " vel0 " << lj.velocity[0] << "/" << rj.velocity[0];
-      return;
-    }
-    const palm_pose_t& lp = live_palm.at(seq);
-    const palm_pose_t& rp = rep_palm.at(seq);
-    if (bytes_of(rp) != bytes_of(lp)) {
-      ADD_FAILURE() << "palm_pose_t differs at seq " << seq << ": valid " << int(lp.valid) << "/"
-                    << int(rp.valid) << " reason " << lp.invalid_reason << "/" << rp.invalid_reason
-                    << " x " << lp.position[0] << "/" << rp.position[0];
-      return;
-    }
-    ++compared;
-  }
+  // byte for byte; the only difference allowed is the SAMPLE_REPLAY bit (and a
+  // velocity fit over a cycle the recorder lost: expect_same_cycles).
+  const auto [compared, valid_compared] =
+      expect_same_cycles(live_joint, live_palm, g_live->replay, p, 0, false, true);
+  EXPECT_GT(valid_compared, 1000U);
+  // The recorder loses a datagram now and then on a loaded machine; more than
+  // 0.1 % would be a recording problem this test should not hide.
+  EXPECT_LE(g_live->recorder_lost.size(), live_raw.size() / 1000);
+  std::printf("replay: %zu cycles compared, %zu lost by the recorder\n", compared,
+              g_live->recorder_lost.size());
   EXPECT_GT(compared, live_raw.size() * 99 / 100);
 
   // Event timestamps are the messages' utime, as lcm-logger's are close to.
@@ -209,22 +233,28 @@ Excerpt cut_excerpt(const std::vector<LogEvent>& log, const std::string& raw_cha
   return x;
 }
 
-// Every replayed cycle of the excerpt equals the reference's of the same seq,
-// the replay mark aside; a joint's velocity from its 21st fresh sample in the
-// excerpt on (velocity_window 21: before that, the live fit used samples from
-// before the excerpt). Returns the cycles compared and how many had a valid pose.
+// Every replayed cycle equals the reference's of the same seq, the replay
+// mark aside. A joint's velocity is compared from its 21st fresh sample on
+// (velocity_window 21): in an excerpt (`whole_run` false) and after a cycle
+// the recorder lost, the live fit used samples the replay never had. Returns
+// the cycles compared and how many had a valid pose.
 std::pair<std::size_t, std::size_t> expect_same_cycles(
     const std::map<std::int64_t, joint_state_t>& ref_joint,
     const std::map<std::int64_t, palm_pose_t>& ref_palm, const std::string& replay,
-    const std::string& p, std::int64_t first_seq, bool ref_is_replay) {
+    const std::string& p, std::int64_t first_seq, bool ref_is_replay, bool whole_run) {
   const auto log = read_log(replay);
   const auto rep_joint = messages_by_seq<joint_state_t>(log, p + "EXO_JOINT_STATE");
   const auto rep_palm = messages_by_seq<palm_pose_t>(log, p + "EXO_PALM_POSE");
   constexpr int kWindow = 21;
   std::array<int, 6> fresh{};
+  if (whole_run) fresh.fill(kWindow);
+  const std::set<std::int64_t>& lost = g_live->recorder_lost;
+  std::int64_t previous = -1;
   std::size_t compared = 0;
   std::size_t valid = 0;
   for (const auto& [seq, rj0] : rep_joint) {
+    if (previous >= 0 && lost.lower_bound(previous + 1) != lost.lower_bound(seq)) fresh.fill(0);
+    previous = seq;
     for (std::size_t j = 0; j < 6; ++j) {
       if ((rj0.flags[j] & joint_state_t::JOINT_HELD) == 0) ++fresh[j];
     }
@@ -290,7 +320,7 @@ TEST_F(ReplayLive, ExcerptsFromTheMiddleReplayToTheLiveValues) {
         << r.out;
     EXPECT_EQ(r.err.find("no homing record"), std::string::npos) << r.err;
     const auto [compared, valid] =
-        expect_same_cycles(live_joint, live_palm, out, p, x.first_seq, false);
+        expect_same_cycles(live_joint, live_palm, out, p, x.first_seq, false, false);
     EXPECT_GT(compared, static_cast<std::size_t>(x.raw_count) * 99 / 100) << x.path;
     valid_total += valid;
     if (i == kExcerpts.size() - 1) {
@@ -326,7 +356,7 @@ TEST_F(ReplayLive, ExcerptsWithANewCalibrationMatchTheWholeRecordingsReplay) {
         exodaq({"replay", x.path, "-c", g_live->config, "--calibration", calibration, "-o", out});
     ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
     const auto [compared, valid] =
-        expect_same_cycles(ref_joint, ref_palm, out, p, x.first_seq, true);
+        expect_same_cycles(ref_joint, ref_palm, out, p, x.first_seq, true, false);
     EXPECT_GT(compared, static_cast<std::size_t>(x.raw_count) * 99 / 100) << x.path;
     if (i == kExcerpts.size() - 1) {
       EXPECT_GT(valid, 1000U);
