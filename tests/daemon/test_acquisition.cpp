@@ -182,13 +182,18 @@ void run_cycles(core::Acquisition& acq, int from, int to) {
     acq.publisher().drain();
   }
 }
+// A ramp source's loop driven by hand (run_cycles), every message kept.
+std::unique_ptr<core::Acquisition> manual_ramp_acquisition(MemorySink*& sink) {
+  auto acq = make_acquisition(std::make_unique<RampSource>(), sink);
+  sink->keep = true;
+  acq->prepare_for_manual_cycles();
+  return acq;
+}
 }  // namespace
 
 TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
   MemorySink* sink = nullptr;
-  auto acq = make_acquisition(std::make_unique<RampSource>(), sink);
-  sink->keep = true;
-  acq->prepare_for_manual_cycles();
+  auto acq = manual_ramp_acquisition(sink);
   run_cycles(*acq, 0, 1000);
   // Exactly one of each per cycle, status every 100 cycles; nothing before the first cycle.
   EXPECT_EQ(sink->counts[0], 1000);
@@ -256,9 +261,7 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
 // (docs/messages.md, status_t.seq).
 TEST(Acquisition, AFinalStatusAfterAnEmptyWindowRepeatsItsSeq) {
   MemorySink* sink = nullptr;
-  auto acq = make_acquisition(std::make_unique<RampSource>(), sink);
-  sink->keep = true;
-  acq->prepare_for_manual_cycles();
+  auto acq = manual_ramp_acquisition(sink);
   run_cycles(*acq, 0, 200);
   acq->stop();
   acq->publisher().drain();
@@ -283,9 +286,7 @@ TEST(Acquisition, AFinalStatusAfterAnEmptyWindowRepeatsItsSeq) {
 // sample is FOREIGN_RUN and the status names the run, degraded; 0 ends it.
 TEST(Acquisition, AForeignRunFlagsEverySampleAndDegradesUntilCleared) {
   MemorySink* sink = nullptr;
-  auto acq = make_acquisition(std::make_unique<RampSource>(), sink);
-  sink->keep = true;
-  acq->prepare_for_manual_cycles();
+  auto acq = manual_ramp_acquisition(sink);
   constexpr std::int64_t kForeign = 0x0123456789abcdef;
   run_cycles(*acq, 0, 200);
   acq->set_foreign_run_id(kForeign);
