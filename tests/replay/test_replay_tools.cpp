@@ -40,6 +40,9 @@ namespace cal = exodaq::calibration;
 
 constexpr std::int32_t kSampleReplay = 1024;  // joint_state_t::SAMPLE_REPLAY
 constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+// The least fraction of its 1 ms deadlines the live loop must run for the
+// suite's floors ("at least N cycles") to hold; set-up checks it.
+constexpr double kLeastKept = 0.25;
 
 // One live recording shared by every test of the suite.
 struct Live {
@@ -130,6 +133,19 @@ class ReplayLive : public ::testing::Test {
       ASSERT_TRUE(logger.wait(std::chrono::seconds(10)).has_value());
     }
     live->recorder_lost = recorder_losses(live->log, live->prefix, live->dir + "/exodaqd.err");
+    // The floors below assume the loop ran at least a quarter of its
+    // deadlines (a CI run under ASan on two loaded cores ran 68 %).
+    const auto raw =
+        messages_by_seq<encoder_raw_t>(read_log(live->log), live->prefix + "EXO_ENCODER_RAW");
+    ASSERT_FALSE(raw.empty()) << "no encoder_raw_t recorded";
+    const double deadlines = static_cast<double>(raw.rbegin()->first - raw.begin()->first + 1);
+    const double ran = static_cast<double>(raw.size() + live->recorder_lost.size()) / deadlines;
+    std::printf("live: %zu cycles recorded, the loop ran %.0f %% of %.0f deadlines\n", raw.size(),
+                100 * ran, deadlines);
+    ASSERT_GT(deadlines, 15'000) << "live run too short";
+    ASSERT_GE(ran, kLeastKept)
+        << "the loop skipped most deadlines: the machine is too slow for the "
+           "floors of this suite";
     live->replay = live->dir + "/replay.lcm";
     const RunResult r = exodaq(
         {"replay", live->log, "--config", live->config, "--out", live->replay, "--speed", "max"});
@@ -167,7 +183,7 @@ TEST_F(ReplayLive, ReproducesLiveJointAndPalmMessagesExactly) {
   const auto live_raw = messages_by_seq<encoder_raw_t>(live, p + "EXO_ENCODER_RAW");
   const auto rep_joint = messages_by_seq<joint_state_t>(replay, p + "EXO_JOINT_STATE");
   const auto rep_palm = messages_by_seq<palm_pose_t>(replay, p + "EXO_PALM_POSE");
-  ASSERT_GT(live_raw.size(), 10'000U) << "live run too short";
+  ASSERT_GT(live_raw.size(), 15'000 * kLeastKept) << "live run too short";
   // One output cycle per recorded raw message, with the recorded seq.
   ASSERT_EQ(rep_joint.size(), live_raw.size());
   ASSERT_EQ(rep_palm.size(), live_raw.size());
@@ -307,12 +323,16 @@ TEST_F(ReplayLive, ExcerptsFromTheMiddleReplayToTheLiveValues) {
   const auto live_palm = messages_by_seq<palm_pose_t>(live, p + "EXO_PALM_POSE");
   ASSERT_FALSE(messages_by_seq<homing_t>(live, p + "EXO_HOMING").empty())
       << "the daemon records no homing_t";
-  std::size_t valid_total = 0;
   for (std::size_t i = 0; i < kExcerpts.size(); ++i) {
     const Excerpt x =
         cut_excerpt(live, p + "EXO_ENCODER_RAW", kExcerpts[i].first, kExcerpts[i].second,
                     g_live->dir + "/excerpt" + std::to_string(i) + ".lcm");
-    ASSERT_GT(x.raw_count, 1500) << x.path;
+    // About 2 s of deadlines, of which the loop ran at least kLeastKept (a CI
+    // run under ASan: 1339 of 2200): still many velocity windows and the
+    // homing hand-over.
+    const auto nominal =
+        static_cast<std::int64_t>((kExcerpts[i].second - kExcerpts[i].first) * 1000);
+    ASSERT_GT(x.raw_count, nominal * kLeastKept) << x.path;
     const std::string out = g_live->dir + "/excerpt" + std::to_string(i) + "-replay.lcm";
     const RunResult r = exodaq({"replay", x.path, "-c", g_live->config, "-o", out});
     ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
@@ -322,12 +342,14 @@ TEST_F(ReplayLive, ExcerptsFromTheMiddleReplayToTheLiveValues) {
     const auto [compared, valid] =
         expect_same_cycles(live_joint, live_palm, out, p, x.first_seq, false, false);
     EXPECT_GT(compared, static_cast<std::size_t>(x.raw_count) * 99 / 100) << x.path;
-    valid_total += valid;
+    std::printf("excerpt %zu: %lld raw messages, %zu cycles compared, %zu valid poses\n", i,
+                static_cast<long long>(x.raw_count), compared, valid);
     if (i == kExcerpts.size() - 1) {
-      EXPECT_GT(valid, 1000U) << "no valid poses to compare";
+      // Every joint is homed by then: every pose is valid.
+      EXPECT_EQ(valid, compared) << "an invalid pose after homing";
+      EXPECT_GT(valid, 0U);
     }
   }
-  EXPECT_GT(valid_total, 1000U);
 }
 
 TEST_F(ReplayLive, ExcerptsWithANewCalibrationMatchTheWholeRecordingsReplay) {
@@ -359,7 +381,9 @@ TEST_F(ReplayLive, ExcerptsWithANewCalibrationMatchTheWholeRecordingsReplay) {
         expect_same_cycles(ref_joint, ref_palm, out, p, x.first_seq, true, false);
     EXPECT_GT(compared, static_cast<std::size_t>(x.raw_count) * 99 / 100) << x.path;
     if (i == kExcerpts.size() - 1) {
-      EXPECT_GT(valid, 1000U);
+      // Every joint is homed by then: every pose is valid.
+      EXPECT_EQ(valid, compared) << "an invalid pose after homing";
+      EXPECT_GT(valid, 0U);
       // Recomputed, not copied: the palm moved with the new calibration.
       const auto rep = messages_by_seq<palm_pose_t>(read_log(out), p + "EXO_PALM_POSE");
       std::size_t moved = 0;
@@ -369,7 +393,7 @@ TEST_F(ReplayLive, ExcerptsWithANewCalibrationMatchTheWholeRecordingsReplay) {
           ++moved;
         }
       }
-      EXPECT_GT(moved, 1000U);
+      EXPECT_GT(moved, valid * 99 / 100);
     }
   }
 }
@@ -747,7 +771,9 @@ TEST_F(ReplayLive, CalibrateReadsTheRecordingAndFindsTheKnownCalibration) {
   const std::string dir = g_live->dir + "/calibrate";
   std::filesystem::create_directories(dir);
   const Markers m = synthesise_markers(dir);
-  ASSERT_GT(m.rows, 5U * 300);
+  // Every tenth clean cycle of the last ~5 s, five markers each: at least a
+  // hundred postures when the loop ran a quarter of its deadlines.
+  ASSERT_GT(m.rows, 5U * 100);
   const std::string sim_cal = std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/sim.yaml";
 
   // The lcm-logger recording, raw channel re-processed with the config.
