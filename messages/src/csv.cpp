@@ -155,6 +155,16 @@ constexpr const char* kStatusCounterColumns[] = {"overruns",
                                                  "calibration_provenance",
                                                  "reloads",
                                                  "foreign_run_id"};
+// The status columns status_values() fills with text.
+constexpr const char* kStatusTextColumns[] = {"rig",
+                                              "message",
+                                              "source",
+                                              "config_path",
+                                              "config_sha256",
+                                              "calibration_path",
+                                              "calibration_sha256",
+                                              "calibration_provenance",
+                                              "foreign_run_id"};
 constexpr const char* kStatusJointSuffixes[] = {"_homing",       "_flags",
                                                 "_glitches",     "_lost_count_events",
                                                 "_stale_events", "_out_of_range_events"};
@@ -268,6 +278,15 @@ void append_values(const Message& m, std::vector<std::string>& out) {
         if constexpr (std::is_same_v<T, homing_t>) homing_values(v, out);
       },
       m);
+}
+
+bool is_text_column(Kind k, std::string_view column) {
+  if (column == "run_id") return true;
+  if (k != Kind::kStatus) return false;
+  for (const char* c : kStatusTextColumns) {
+    if (column == c) return true;
+  }
+  return false;
 }
 
 std::vector<std::string> cycle_header(const JointNames& joints) {

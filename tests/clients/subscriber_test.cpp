@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <limits>
 #include <numbers>
@@ -152,6 +153,49 @@ TEST(CsvSchema, GoldenHeadersOfEachKind) {
     std::sort(h.begin(), h.end());
     EXPECT_EQ(std::adjacent_find(h.begin(), h.end()), h.end());
   }
+}
+
+// is_text_column names exactly the columns whose values are not numbers
+// (status --json writes those as strings), for a message of every kind whose
+// strings and run ids cannot be read as numbers.
+TEST(CsvSchema, TextColumnsAreExactlyTheValuesThatAreNotNumbers) {
+  constexpr std::int64_t kRun = 0x0123456789abcdefLL;
+  exodaq::status_t st{};
+  st.rig = "bench-2";
+  st.message = "running: 6/6 homed";
+  st.source = "sim";
+  st.config_path = "/etc/exodaq/exodaqd.yaml";
+  st.config_sha256 = "e3b0c442";
+  st.calibration_path = "/etc/exodaq/cal.yaml";
+  st.calibration_sha256 = "a1b2c3";
+  st.calibration_provenance = "exodaq calibrate";
+  st.foreign_run_id = kRun;
+  exodaq::joint_state_t js{};
+  exodaq::palm_pose_t pp{};
+  exodaq::encoder_raw_t raw{};
+  exodaq::homing_t hm{};
+  const std::vector<msg::Message> all{msg::Message{st}, msg::Message{js}, msg::Message{pp},
+                                      msg::Message{raw}, msg::Message{hm}};
+  const auto is_number = [](const std::string& v) {
+    char* end = nullptr;
+    std::strtod(v.c_str(), &end);
+    return !v.empty() && *end == '\0';
+  };
+  std::size_t text = 0;
+  for (msg::Message m : all) {
+    std::visit([&](auto& v) { v.run_id = kRun; }, m);
+    const msg::Kind k = msg::kind_of(m);
+    const auto names = msg::csv::header(k, msg::csv::joints_of(m));
+    std::vector<std::string> values;
+    msg::csv::append_values(m, values);
+    ASSERT_EQ(names.size(), values.size());
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      EXPECT_EQ(msg::csv::is_text_column(k, names[i]), !is_number(values[i]))
+          << msg::type_name(k) << " column " << names[i] << " = '" << values[i] << "'";
+      text += msg::csv::is_text_column(k, names[i]) ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(text, 9U + 5U);  // status_t's nine, and every kind's run_id
 }
 
 TEST(CsvSchema, ValuesFollowTheHeader) {

@@ -5,7 +5,6 @@
 #include <cstdio>
 #include <ctime>
 #include <optional>
-#include <set>
 #include <string>
 
 #include "clock_text.hpp"
@@ -101,19 +100,10 @@ void print_json(const std::string& channel, const status_t& s) {
   std::vector<std::string> values;
   msg::csv::append_values(m, values);
   std::string out = "{\n  \"channel\": " + json_string(channel);
-  static const std::set<std::string> kText = {"rig",
-                                              "message",
-                                              "source",
-                                              "run_id",
-                                              "config_path",
-                                              "config_sha256",
-                                              "calibration_path",
-                                              "calibration_sha256",
-                                              "calibration_provenance",
-                                              "foreign_run_id"};
   for (std::size_t i = 0; i < names.size(); ++i) {
     out += ",\n  " + json_string(names[i]) + ": " +
-           (kText.count(names[i]) != 0 ? json_string(values[i]) : json_value(values[i]));
+           (msg::csv::is_text_column(msg::Kind::kStatus, names[i]) ? json_string(values[i])
+                                                                   : json_value(values[i]));
   }
   std::printf("%s\n}\n", out.c_str());
 }

@@ -40,6 +40,9 @@ std::vector<std::string> header(Kind k, const JointNames& joints);
 JointNames joints_of(const Message& m);
 // One message's values in header() order, appended to `out`.
 void append_values(const Message& m, std::vector<std::string>& out);
+// Whether a column of header(k, …) holds text (a string field or a run id:
+// JSON writes it as a string) rather than a number.
+bool is_text_column(Kind k, std::string_view column);
 
 // One cycle (exodaq export): the header, joint_state_t's columns, then
 // palm_pose_t's (empty when the cycle has no palm message).
