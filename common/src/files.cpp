@@ -196,7 +196,7 @@ std::optional<TextProblem> find_text_problem(std::string_view text) {
   for (std::size_t i = 0; i < n;) {
     const unsigned char c = s[i];
     const auto problem = [&](const std::string& what) {
-      return TextProblem{line, what + " at column " + std::to_string(i - line_start + 1)};
+      return TextProblem{line, static_cast<int>(i - line_start + 1), what};
     };
     if (c == 0) return problem("NUL byte (a binary file?)");
     if (c == '\n') {

@@ -81,7 +81,7 @@ int line_of(const YAML::Node& node) noexcept {
 YAML::Node load_yaml_text(const std::string& text, const std::string& name) {
   // yaml-cpp reads a NUL as the end of the text and passes invalid UTF-8 on.
   if (const auto problem = files::find_text_problem(text)) {
-    throw ConfigError(name, problem->line, problem->what);
+    throw ConfigError(name, problem->line, problem->what_and_column());
   }
   YAML::Node root;
   try {
@@ -182,7 +182,7 @@ std::string MapReader::string(const std::string& key) {
 std::string MapReader::to_string(const YAML::Node& n, const std::string& what) const {
   if (!n.IsScalar()) fail(n, "'" + what + "' must be a string, found " + kind_name(n));
   if (const auto problem = files::find_text_problem(n.Scalar())) {
-    fail(n, "'" + what + "' decodes to " + problem->what.substr(0, problem->what.find(" at ")) +
+    fail(n, "'" + what + "' decodes to " + problem->what +
                 ": write the character itself, not the escape \\_ or \\N");
   }
   return n.Scalar();

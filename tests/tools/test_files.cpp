@@ -234,7 +234,7 @@ TEST(FilesText, NulAndInvalidUtf8AreFoundWithTheirLine) {
       find_text_problem("rig: bench\nname: \xc3\xa9t\xc3\xa9 \xe2\x82\xac \xf0\x9d\x84\x9e\n"));
   const auto at = [](std::string_view t) {
     const auto p = find_text_problem(t);
-    return p ? std::to_string(p->line) + ": " + p->what : std::string("clean");
+    return p ? std::to_string(p->line) + ": " + p->what_and_column() : std::string("clean");
   };
   EXPECT_EQ(at(std::string_view("a: 1\nb: 2\0 3\n", 12)),
             "2: NUL byte (a binary file?) at column 5");

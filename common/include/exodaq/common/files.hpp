@@ -60,10 +60,12 @@ InputInfo check_input(const std::string& path, std::int64_t max_bytes);
 std::string read_input(const std::string& path, std::int64_t max_bytes);
 
 // The first NUL byte or invalid UTF-8 sequence in `text`: its 1-based line and
-// what it is; nullopt when the text is clean.
+// column and what it is; nullopt when the text is clean.
 struct TextProblem {
   int line = 0;
-  std::string what;
+  int column = 0;
+  std::string what;  // "invalid UTF-8 (byte 0xff)", without the place
+  std::string what_and_column() const { return what + " at column " + std::to_string(column); }
 };
 std::optional<TextProblem> find_text_problem(std::string_view text);
 
