@@ -170,17 +170,14 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, const WindowEnd& 
   // One line for people: snprintf into a stack buffer, assigned within the
   // reserved capacity.
   char text[256];  // status_t.message: at most 255 characters
-  const double valid_pct =
-      facts_.cycles > 0 ? 100.0 * facts_.valid_poses / static_cast<double>(facts_.cycles) : 0.0;
   // The final status may cover no cycle (docs/messages.md, status_t.seq).
-  int n =
-      facts_.cycles > 0
-          ? std::snprintf(text, sizeof(text), "%s: %d/%d homed, %.1f%% valid, %lld overruns",
-                          state_name(state), homed, kJointCount, valid_pct,
-                          static_cast<long long>(overruns))
-          : std::snprintf(text, sizeof(text),
-                          "%s: %d/%d homed, no cycle since the last status, %lld overruns",
-                          state_name(state), homed, kJointCount, static_cast<long long>(overruns));
+  char valid[40] = "no cycle since the last status";
+  if (facts_.cycles > 0) {
+    std::snprintf(valid, sizeof(valid), "%.1f%% valid",
+                  100.0 * facts_.valid_poses / static_cast<double>(facts_.cycles));
+  }
+  int n = std::snprintf(text, sizeof(text), "%s: %d/%d homed, %s, %lld overruns", state_name(state),
+                        homed, kJointCount, valid, static_cast<long long>(overruns));
   if (worst_joint >= 0 && n > 0 && n < static_cast<int>(sizeof(text))) {
     n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
                        "; joint %s flags 0x%x", s.joint_name[worst_joint].c_str(),
