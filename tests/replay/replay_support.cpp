@@ -29,26 +29,6 @@ std::int64_t file_size(const std::string& path) {
   return static_cast<std::int64_t>(st.st_size);
 }
 
-namespace {
-void replace_once(std::string& text, const std::string& from, const std::string& to) {
-  const auto pos = text.find(from);
-  if (pos == std::string::npos) throw std::runtime_error("config/sim.yaml has no '" + from + "'");
-  text.replace(pos, from.size(), to);
-}
-}  // namespace
-
-std::string write_sim_config(const std::string& dir, const std::string& prefix) {
-  const std::string src = EXODAQ_SOURCE_DIR "/config/";
-  std::string text = read_text(src + "sim.yaml");
-  replace_once(text, "\nmodel: ", "\nmodel: " + src);
-  replace_once(text, "\ncalibration: ", "\ncalibration: " + src);
-  replace_once(text, "task: tasks/", "task: " + src + "tasks/");
-  replace_once(text, "prefix: \"\"", "prefix: \"" + prefix + "\"");
-  const std::string path = dir + "/sim.yaml";
-  write_text(path, text);
-  return path;
-}
-
 std::string candump_line(const drivers::can::CanFrame& f, std::int64_t stamp_ns,
                          const std::string& iface) {
   namespace ff = drivers::can::frame_flag;

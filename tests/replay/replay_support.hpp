@@ -38,11 +38,6 @@ LogEvent event(const std::string& channel, const Msg& m) {
   return LogEvent{channel, msg::encode(m), m.utime};
 }
 
-// config/sim.yaml with absolute model/calibration paths, the given LCM
-// prefix and, optionally, text replacing the `source:` section's backend
-// line. Returns the written path.
-std::string write_sim_config(const std::string& dir, const std::string& prefix);
-
 // The simulated rig's frames for cycles [0, cycles) as `candump -l` lines
 // (wall-clock stamps from `wall_start_ns`). Also returns, per cycle, the
 // counts the board sent (by board channel), for truth checks.

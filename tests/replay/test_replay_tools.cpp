@@ -31,6 +31,7 @@
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
 #include "replay_support.hpp"
+#include "sim_daemon.hpp"
 #include "synthetic.hpp"
 
 namespace exodaq::test {

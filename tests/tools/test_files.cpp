@@ -26,6 +26,7 @@
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/raw_sample.hpp"
 #include "process.hpp"
+#include "sim_daemon.hpp"
 
 namespace exodaq {
 namespace {
@@ -42,20 +43,6 @@ std::string read_text(const std::string& path) {
 
 void write_text(const std::string& path, const std::string& text) {
   std::ofstream(path, std::ios::binary) << text;
-}
-
-// config/sim.yaml as dir/sim.yaml, its model, calibration and task paths made
-// absolute and lcm.prefix set to `prefix`; returns the path.
-std::string write_sim_config(const std::string& dir, const std::string& prefix) {
-  const std::string src = EXODAQ_SOURCE_DIR "/config/";
-  std::string text = read_text(src + "sim.yaml");
-  text.replace(text.find("\nmodel: "), 8, "\nmodel: " + src);
-  text.replace(text.find("\ncalibration: "), 14, "\ncalibration: " + src);
-  text.replace(text.find("task: tasks/"), 12, "task: " + src + "tasks/");
-  text.replace(text.find("prefix: \"\""), 10, "prefix: \"" + prefix + "\"");
-  const std::string path = dir + "/sim.yaml";
-  write_text(path, text);
-  return path;
 }
 
 // Names starting with '.' in `dir`: a temporary file left behind.
@@ -269,7 +256,7 @@ class ToolFiles : public ::testing::Test {
   static void SetUpTestSuite() {
     auto* r = new Recording;
     r->dir = test::make_temp_dir("tool-files");
-    r->config = write_sim_config(r->dir, "");
+    r->config = test::write_sim_config(r->dir, "");
     const config::ServiceConfig cfg = config::load_service_config(r->config);
     const auto ctx = config::make_source_context(cfg);
     drivers::sim::SimOptions opt = drivers::sim_options_from(cfg.source, ctx);
@@ -464,7 +451,7 @@ TEST_F(ToolFiles, ConfigAndModelInputsAreRegularFilesWithinTheLimit) {
 // machine without NTP showed "clock NOT SYNCHRONISED, est error 16000000.0 us".
 TEST(ToolStatus, AnIgnoredClockIsNotShoutedAndNoEstimateIsUnknown) {
   const std::string dir = test::make_temp_dir("status-clock");
-  const std::string config = write_sim_config(dir, test::unique_prefix("clk"));
+  const std::string config = test::write_sim_config(dir, test::unique_prefix("clk"));
   test::Process daemon({EXODAQD, "-c", config, "--duration", "20"}, dir + "/d.out", dir + "/d.err");
   const auto r = test::run({EXODAQ_TOOL, "status", "-c", config, "--timeout", "10"});
   daemon.signal(SIGINT);

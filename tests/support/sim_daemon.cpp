@@ -1,0 +1,43 @@
+#include "sim_daemon.hpp"
+
+#include <unistd.h>
+
+#include <fstream>
+
+#include "process.hpp"
+
+namespace exodaq::test {
+namespace {
+
+// Replaces the one occurrence of `from`; throws when config/sim.yaml has none
+// (it changed, and the tests would run on paths they did not mean).
+void replace_once(std::string& text, const std::string& from, const std::string& to) {
+  const auto pos = text.find(from);
+  if (pos == std::string::npos) throw std::runtime_error("config/sim.yaml has no '" + from + "'");
+  text.replace(pos, from.size(), to);
+}
+
+}  // namespace
+
+std::string write_sim_config(const std::string& dir, const std::string& prefix,
+                             const std::string& calibration) {
+  const std::string src = std::string(EXODAQ_SOURCE_DIR) + "/config/";
+  std::string text = read_file(src + "sim.yaml");
+  replace_once(text, "\nmodel: ", "\nmodel: " + src);
+  replace_once(text, "task: tasks/", "task: " + src + "tasks/");
+  if (calibration.empty()) {
+    replace_once(text, "\ncalibration: ", "\ncalibration: " + src);
+  } else {
+    replace_once(text, "\ncalibration: calibration/sim.yaml", "\ncalibration: " + calibration);
+  }
+  replace_once(text, "prefix: \"\"", "prefix: \"" + prefix + "\"");
+  // sim.yaml asks for SCHED_FIFO 50; without privilege ask for none, to keep the log quiet.
+  if (geteuid() != 0) replace_once(text, "priority: 50 ", "priority: 0 ");
+  const std::string path = dir + "/exodaqd.yaml";
+  std::ofstream out(path);
+  out << text;
+  if (!out) throw std::runtime_error("cannot write " + path);
+  return path;
+}
+
+}  // namespace exodaq::test
