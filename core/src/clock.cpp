@@ -116,8 +116,17 @@ void ClockMonitor::run() {
   }
 }
 
+namespace {
+// The sample's own wall stamp when it has one that agrees with the mapping.
+std::int64_t stamp_or_mapped(std::int64_t mapped_ns, std::int64_t wall_ns) noexcept {
+  const bool agrees =
+      wall_ns > 0 && std::llabs(wall_ns - mapped_ns) <= WallTimeMapper::kStampAgreementNs;
+  return agrees ? wall_ns : mapped_ns;
+}
+}  // namespace
+
 WallTimeMapper::Result WallTimeMapper::map(std::int64_t mono_ns, std::int64_t target,
-                                           std::int64_t generation) noexcept {
+                                           std::int64_t generation, std::int64_t wall_ns) noexcept {
   Result r;
   if (!started_) {
     started_ = true;
@@ -125,7 +134,7 @@ WallTimeMapper::Result WallTimeMapper::map(std::int64_t mono_ns, std::int64_t ta
     last_mono_ = mono_ns;
     last_target_ = target;
     last_generation_ = generation;
-    last_utime_ns_ = mono_ns + applied_;
+    last_utime_ns_ = stamp_or_mapped(mono_ns + applied_, wall_ns);
     r.utime_us = last_utime_ns_ / 1000;
     return r;
   }
@@ -153,6 +162,7 @@ WallTimeMapper::Result WallTimeMapper::map(std::int64_t mono_ns, std::int64_t ta
   if (applied_ == target) stepping_ = false;
   const bool off = std::llabs(target - applied_) > policy_.step_threshold_ns;
   std::int64_t utime_ns = mono_ns + applied_;
+  if (!off && !r.new_step) utime_ns = stamp_or_mapped(utime_ns, wall_ns);
   if (utime_ns < last_utime_ns_) utime_ns = last_utime_ns_;  // never backwards
   last_utime_ns_ = utime_ns;
   r.utime_us = utime_ns / 1000;

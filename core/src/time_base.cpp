@@ -44,8 +44,9 @@ std::int64_t LiveTimeBase::overrun(std::int64_t end_ns,
 
 SampleTime LiveTimeBase::stamp(const drivers::EncoderSample& sample) noexcept {
   SampleTime t;
-  const auto mapped = mapper_.map(sample.mono_ns, clock_.offset_ns.load(std::memory_order_relaxed),
-                                  clock_.offset_generation.load(std::memory_order_acquire));
+  const auto mapped =
+      mapper_.map(sample.mono_ns, clock_.offset_ns.load(std::memory_order_relaxed),
+                  clock_.offset_generation.load(std::memory_order_acquire), sample.wall_ns);
   t.utime_us = mapped.utime_us;
   t.new_step = mapped.new_step;
   if (mapped.stepping) {

@@ -66,6 +66,34 @@ TEST(WallTimeMapper, SteadyClockMapsExactly) {
   EXPECT_EQ(m.steps(), 0);
 }
 
+// The kernel stamps a CAN frame in CLOCK_REALTIME; the driver turns it into
+// mono_ns with its own REALTIME - MONOTONIC estimate, the mapper back with the
+// clock monitor's. Two estimates differ by their brackets' noise (2 us in the
+// QEMU VM): utime is the stamp itself, not the stamp moved by that noise.
+TEST(WallTimeMapper, AWallStampThatAgreesIsUtimeItself) {
+  WallTimeMapper m;
+  constexpr std::int64_t kDriverError = 2'345;  // ns: the driver's estimate is off by this
+  std::int64_t last = 0;
+  for (std::int64_t k = 0; k < 1000; ++k) {
+    const std::int64_t wall = kEpoch + 5 * kS + k * kMs + 123'456;  // the kernel's stamp
+    const std::int64_t mono = wall - (kEpoch - kDriverError);
+    const auto r = m.map(mono, kEpoch, 1, wall);
+    ASSERT_EQ(r.utime_us, wall / 1000) << k;
+    ASSERT_FALSE(r.stepping);
+    last = r.utime_us;
+  }
+  // A stamp further off than kStampAgreementNs is not this clock's reading as
+  // mapped (a step the monitor has not measured yet): the mapping stands, and
+  // utime does not go back from the last stamp.
+  const std::int64_t mono = 6 * kS + kDriverError;
+  const std::int64_t far = kEpoch + mono + 3 * WallTimeMapper::kStampAgreementNs;
+  EXPECT_EQ(m.map(mono, kEpoch, 1, far).utime_us, (mono + kEpoch) / 1000);
+  EXPECT_GE((mono + kEpoch) / 1000, last);
+  const std::int64_t just_after = 6 * kS + kMs;
+  EXPECT_EQ(m.map(just_after, kEpoch, 1).utime_us, (just_after + kEpoch) / 1000)
+      << "no wall stamp: the mapping";
+}
+
 TEST(WallTimeMapper, NtpSlewOf500ppmPassesThroughUnflagged) {
   WallTimeMapper m;
   // chrony/ntpd slew at most 500 ppm: the offset grows 0.5 ms per second.

@@ -156,8 +156,8 @@ sed -e "s/^  rate_hz: [0-9]* /  rate_hz: $RATE2 /" -e 's/^rig: .*/rig: vm-rig-b/
 grep -q "rate_hz: $RATE2 " $C/rig-a.yaml && grep -q 'board: 1' $C/rig-b.yaml &&
   grep -q 'sync_master: false' $C/rig-b.yaml &&
   grep -q 'prefix: "RIGB_"' $C/rig-b.yaml || fail "cannot write rig-b.yaml"
-TOL_a=5
-TOL_b=5
+TOL_a=1
+TOL_b=1
 for r in a b; do
   eval tol=\$TOL_$r
   $B/exodaq-vcan-check --config $C/rig-$r.yaml --truth $W/truth-$r.txt \

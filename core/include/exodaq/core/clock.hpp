@@ -84,7 +84,11 @@ class ClockMonitor {
 
 // On the loop thread: turns a sample's mono_ns into utime. Never runs
 // backwards; a step is slewed out at policy.step_slew_ppm while samples are
-// flagged; ordinary changes are tracked at policy.slew_ppm.
+// flagged; ordinary changes are tracked at policy.slew_ppm. A sample's own
+// wall stamp (the kernel's receive time of its CAN frame), given as `wall_ns`,
+// is utime itself while it agrees with the mapping within kStampAgreementNs:
+// the driver's and the clock monitor's REALTIME - MONOTONIC estimates differ
+// by their brackets' noise, which must not move utime off the kernel stamp.
 class WallTimeMapper {
  public:
   void set_policy(const ClockPolicy& policy) noexcept { policy_ = policy; }
@@ -94,8 +98,9 @@ class WallTimeMapper {
     bool stepping = false;  // a step is being absorbed: utime may be off by more than the threshold
     bool new_step = false;  // a step was detected at this sample
   };
-  Result map(std::int64_t mono_ns, std::int64_t target_offset_ns,
-             std::int64_t target_generation) noexcept;
+  static constexpr std::int64_t kStampAgreementNs = 10'000;
+  Result map(std::int64_t mono_ns, std::int64_t target_offset_ns, std::int64_t target_generation,
+             std::int64_t wall_ns = 0) noexcept;
 
   std::int64_t steps() const noexcept { return steps_; }
   // utime minus the measured wall clock at the last sample (the correction still to slew out).
