@@ -36,7 +36,6 @@ import array
 import json
 import math
 import os
-import re
 import select
 import shutil
 import signal
@@ -48,6 +47,8 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import netlab  # noqa: E402
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "support"))
+from sim_config import write_sim_config  # noqa: E402
 
 GROUP, PORT = "239.255.76.67", 7667
 PUBLISH_URL = f"udpm://{GROUP}:{PORT}?ttl=1"
@@ -77,22 +78,6 @@ class Checks:
 
 
 # ------------------------------------------------------------------ set-up
-def write_config(work, prefix):
-    text = open(os.path.join(SOURCE_DIR, "config", "sim.yaml")).read()
-    cfg = os.path.join(SOURCE_DIR, "config") + "/"
-    text = text.replace("model: models/", "model: " + cfg + "models/")
-    text = text.replace("calibration: calibration/", "calibration: " + cfg + "calibration/")
-    text = text.replace("task: tasks/", "task: " + cfg + "tasks/")
-    text, n = re.subn(r'^(\s*url:\s*)"[^"]*"', rf'\g<1>"{PUBLISH_URL}"', text, flags=re.M)
-    if n != 1:
-        raise RuntimeError("config/sim.yaml: no lcm url line to replace")
-    text = text.replace('prefix: ""', f'prefix: "{prefix}"')
-    path = os.path.join(work, "exodaqd.yaml")
-    with open(path, "w") as f:
-        f.write(text)
-    return path
-
-
 def wait_line(proc, expected, timeout):
     """Waits for a line `expected` on proc.stdout (a pipe)."""
     end = time.monotonic() + timeout
@@ -304,7 +289,7 @@ def check_export(c, a, work, log_path, joint_seqs):
 
 # ------------------------------------------------------------------ the run
 def run(lab, a, work, decoders):
-    config = write_config(work, a.prefix)
+    config = write_sim_config(SOURCE_DIR, work, a.prefix, url=PUBLISH_URL)
     receivers = decoders + ([] if a.no_local else ["rig"])
     procs, logger, log_path = start_receivers(lab, a, work, receivers)
     memberships = wait_memberships(lab, receivers + ["rec"]) if not a.no_snooping else set()

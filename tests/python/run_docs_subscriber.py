@@ -39,6 +39,9 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "support"))
+from sim_config import write_sim_config  # noqa: E402
+
 MARKER = "<!-- tests/python/run_docs_subscriber.py runs the next code block -->"
 EVERY = 50
 
@@ -97,22 +100,6 @@ def install(args, tmp):
         check(r.returncode == 0, "pip install --no-index %s:\n%s%s" % (args.wheel, r.stdout, r.stderr))
         return py, clean_env(), venv
     return args.python, clean_env(args.site), args.site
-
-
-def write_config(args, tmp, url, prefix):
-    src = args.source_dir
-    text = open(os.path.join(src, "config", "sim.yaml")).read()
-    text = text.replace("model: models/", "model: %s/config/models/" % src)
-    text = text.replace("calibration: calibration/", "calibration: %s/config/calibration/" % src)
-    text = text.replace("task: tasks/", "task: %s/config/tasks/" % src)
-    text = text.replace('prefix: ""', 'prefix: "%s"' % prefix)
-    text = re.sub(r'url: "[^"]*"', 'url: "%s"' % url, text)
-    if os.geteuid() != 0:
-        text = text.replace("priority: 50 ", "priority: 0 ")
-    path = os.path.join(tmp, "exodaqd.yaml")
-    with open(path, "w") as f:
-        f.write(text)
-    return path
 
 
 JOINTS = []  # the joint column stems of echo's CSV (docs/messages.md "CSV")
@@ -215,7 +202,7 @@ def run(args, tmp):
     check_import(py, env, home, work)
     prefix = "TPY_%d_%06d_" % (os.getpid(), random.randrange(10 ** 6))
     url = "udpm://239.255.76.67:%d?ttl=0" % (20000 + (os.getpid() * 13 + random.randrange(89)) % 20000)
-    config = write_config(args, tmp, url, prefix)
+    config = write_sim_config(args.source_dir, tmp, prefix, url=url)
     log = open(os.path.join(tmp, "exodaqd.log"), "w")
     started = time.monotonic()
     daemon = subprocess.Popen([args.exodaqd, "--config", config], stdout=log, stderr=log)

@@ -14,24 +14,13 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "support"))
+from sim_config import write_sim_config  # noqa: E402
+
 
 def fail(msg):
     print("FAIL: " + msg, file=sys.stderr)
     sys.exit(1)
-
-
-def sim_config(source, work):
-    """config/sim.yaml with absolute paths and a prefix of its own (other
-    tests and daemons may share the multicast group)."""
-    text = open(os.path.join(source, "config", "sim.yaml")).read()
-    cfg = os.path.join(source, "config")
-    text = text.replace("\nmodel: ", "\nmodel: " + cfg + "/")
-    text = text.replace("\ncalibration: ", "\ncalibration: " + cfg + "/")
-    text = text.replace("task: tasks/", "task: " + cfg + "/tasks/")
-    text = text.replace('prefix: ""', 'prefix: "RUNTEST%d_"' % os.getpid())
-    path = os.path.join(work, "sim.yaml")
-    open(path, "w").write(text)
-    return path
 
 
 def check_log_line(err):
@@ -54,7 +43,7 @@ def main(argv):
     a = ap.parse_args(argv)
     a.source, a.build = os.path.abspath(a.source), os.path.abspath(a.build)
     work = tempfile.mkdtemp(prefix="exodaq-scripts-run-")
-    env = dict(os.environ, EXODAQ_BUILD_DIR=a.build, EXODAQ_CONFIG=sim_config(a.source, work),
+    env = dict(os.environ, EXODAQ_BUILD_DIR=a.build, EXODAQ_CONFIG=write_sim_config(a.source, work, "RUNTEST%d_" % os.getpid()),
                EXODAQ_VIEW_PORT="0")
     run = os.path.join(a.source, "scripts", "run")
 

@@ -37,6 +37,9 @@ import time
 import urllib.error
 import urllib.request
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "support"))
+from sim_config import write_sim_config  # noqa: E402
+
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -126,25 +129,10 @@ class Test:
         self.prefix = "TVIEW_%s_" % tag
         # A port of its own: nothing else on this host hears this test's 1 kHz stream.
         self.lcm_url = "udpm://239.255.76.67:%d?ttl=0" % (20000 + (os.getpid() * 7 + random.randrange(97)) % 20000)
-        self.config = self.write_config()
+        self.config = write_sim_config(self.args.source_dir, self.tmp, self.prefix, url=self.lcm_url)
 
     def log(self, msg):
         print("[%6.2f] %s" % (time.monotonic() - self.t0, msg), flush=True)
-
-    def write_config(self):
-        src = self.args.source_dir
-        text = open(os.path.join(src, "config", "sim.yaml")).read()
-        text = text.replace("model: models/", "model: %s/config/models/" % src)
-        text = text.replace("calibration: calibration/", "calibration: %s/config/calibration/" % src)
-        text = text.replace("task: tasks/", "task: %s/config/tasks/" % src)
-        text = text.replace('prefix: ""', 'prefix: "%s"' % self.prefix)
-        text = re.sub(r'url: "[^"]*"', 'url: "%s"' % self.lcm_url, text)
-        if os.geteuid() != 0:
-            text = text.replace("priority: 50 ", "priority: 0 ")
-        path = os.path.join(self.tmp, "exodaqd.yaml")
-        with open(path, "w") as f:
-            f.write(text)
-        return path
 
     # ---- processes ---------------------------------------------------------
     def start(self, name, argv):
