@@ -1,7 +1,7 @@
 """The report's sections on exodaqd itself: wake-up lateness, end-to-end latency,
 resources at 1 kHz, scaling."""
 from .. import targets
-from .fmt import fmt, verdict, verdict_word
+from .fmt import fmt, prose, verdict, verdict_word
 
 Q = ("p50_us", "p99_us", "p999_us", "max_us")
 
@@ -166,7 +166,7 @@ def resources(res):
                 "*Cycle work*: 0 in the harness, and the threaded test). The main thread wakes every 20 ms",
                 "(signals, watchdog, log drain), the publisher thread every 50 ms (it only watches for",
                 "publish failures while the loop sends), the loop thread once per ms: most context switches",
-                "are these voluntary sleeps.\n"] + per_message(e2e)
+                "are these voluntary sleeps.\n"] + per_message(e2e) + [prose("status_listener")]
 
 
 def per_message(e2e):
