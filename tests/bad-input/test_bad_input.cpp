@@ -29,6 +29,7 @@
 #include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/replay_source.hpp"
 #include "process.hpp"
+#include "sim_daemon.hpp"
 
 namespace fs = std::filesystem;
 
@@ -127,15 +128,8 @@ exodaq::test::RunResult run_tool(const Case& c, const std::string& tmp) {
   if (c.kind == "calibrations") {
     // The sim config naming this calibration by its absolute path (the
     // message then names that path), written to the temporary directory.
-    std::string cfg = read_text(sim_config());
-    const std::string from = "calibration: calibration/sim.yaml";
-    cfg.replace(cfg.find(from), from.size(), "calibration: " + kRoot + "/calibrations/" + c.file);
-    cfg.replace(cfg.find("model: models/"), 14,
-                "model: " + std::string(EXODAQ_SOURCE_DIR) + "/config/models/");
-    cfg.replace(cfg.find("task: tasks/"), 12,
-                "task: " + std::string(EXODAQ_SOURCE_DIR) + "/config/tasks/");
-    const std::string path = tmp + "/config.yaml";
-    std::ofstream(path) << cfg;
+    const std::string path =
+        exodaq::test::write_sim_config(tmp, "BADINPUT_", kRoot + "/calibrations/" + c.file);
     return exodaq::test::run({EXODAQD, "--config", path, "--check-config"});
   }
   return exodaq::test::run({EXODAQ_TOOL, "replay", c.file, "-c", sim_config(), "--format", c.kind,

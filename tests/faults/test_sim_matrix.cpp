@@ -4,15 +4,14 @@
 // the exact cycles flagged, computed from what the simulator did, and that no
 // sample published valid is wrong by more than one count.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
-#include <fstream>
-#include <regex>
-#include <sstream>
+#include <filesystem>
 
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
 #include "matrix_checks.hpp"
+#include "process.hpp"
+#include "sim_daemon.hpp"
 
 using exodaq::joint_state_t;
 using exodaq::palm_pose_t;
@@ -204,25 +203,16 @@ TEST(SimMatrix, AWrongDlcCountFrameIsABadFrameAndAPartialSample) {
 }
 
 TEST(SimMatrix, TheNewFaultKindsAreAvailableFromTheServiceConfig) {
-  std::ifstream in(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
-  std::stringstream text;
-  text << in.rdbuf();
-  const std::string cfg_dir = std::string(EXODAQ_SOURCE_DIR) + "/config/";
-  std::string yaml =
-      std::regex_replace(text.str(), std::regex("model: models/"), "model: " + cfg_dir + "models/");
-  yaml = std::regex_replace(yaml, std::regex("calibration: calibration/"),
-                            "calibration: " + cfg_dir + "calibration/");
-  yaml = std::regex_replace(yaml, std::regex("task: tasks/"), "task: " + cfg_dir + "tasks/");
-  yaml = std::regex_replace(yaml, std::regex("    jitter_us: 0\n"),
-                            "    jitter_us: 0\n"
-                            "    faults:\n"
-                            "      - {kind: reorder, at_s: 12, for_s: 0.1}\n"
-                            "      - {kind: bad_seq, at_s: 13, for_s: 0.001}\n"
-                            "      - {kind: wrong_dlc, at_s: 14, for_s: 0.001}\n");
-  const std::string path = "/tmp/exodaq-matrix-faults-" + std::to_string(getpid()) + ".yaml";
-  std::ofstream(path) << yaml;
-  const auto cfg = exodaq::config::load_service_config(path);
-  std::remove(path.c_str());
+  std::string yaml = exodaq::test::sim_config_text("MATRIX_");
+  exodaq::test::replace_once(yaml, "    jitter_us: 0\n",
+                             "    jitter_us: 0\n"
+                             "    faults:\n"
+                             "      - {kind: reorder, at_s: 12, for_s: 0.1}\n"
+                             "      - {kind: bad_seq, at_s: 13, for_s: 0.001}\n"
+                             "      - {kind: wrong_dlc, at_s: 14, for_s: 0.001}\n");
+  const std::string dir = exodaq::test::make_temp_dir("matrix");
+  const auto cfg = exodaq::config::load_service_config(exodaq::test::write_config_text(dir, yaml));
+  std::filesystem::remove_all(dir);
   ASSERT_EQ(cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->faults.size(), 3u);
   EXPECT_EQ(cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->faults[0].kind,
             SimFault::Kind::kReorder);

@@ -7,20 +7,14 @@
 #include "process.hpp"
 
 namespace exodaq::test {
-namespace {
 
-// Replaces the one occurrence of `from`; throws when config/sim.yaml has none
-// (it changed, and the tests would run on paths they did not mean).
 void replace_once(std::string& text, const std::string& from, const std::string& to) {
   const auto pos = text.find(from);
-  if (pos == std::string::npos) throw std::runtime_error("config/sim.yaml has no '" + from + "'");
+  if (pos == std::string::npos) throw std::runtime_error("the config text has no '" + from + "'");
   text.replace(pos, from.size(), to);
 }
 
-}  // namespace
-
-std::string write_sim_config(const std::string& dir, const std::string& prefix,
-                             const std::string& calibration) {
+std::string sim_config_text(const std::string& prefix, const std::string& calibration) {
   const std::string src = std::string(EXODAQ_SOURCE_DIR) + "/config/";
   std::string text = read_file(src + "sim.yaml");
   replace_once(text, "\nmodel: ", "\nmodel: " + src);
@@ -33,11 +27,20 @@ std::string write_sim_config(const std::string& dir, const std::string& prefix,
   replace_once(text, "prefix: \"\"", "prefix: \"" + prefix + "\"");
   // sim.yaml asks for SCHED_FIFO 50; without privilege ask for none, to keep the log quiet.
   if (geteuid() != 0) replace_once(text, "priority: 50 ", "priority: 0 ");
+  return text;
+}
+
+std::string write_config_text(const std::string& dir, const std::string& text) {
   const std::string path = dir + "/exodaqd.yaml";
   std::ofstream out(path);
   out << text;
   if (!out) throw std::runtime_error("cannot write " + path);
   return path;
+}
+
+std::string write_sim_config(const std::string& dir, const std::string& prefix,
+                             const std::string& calibration) {
+  return write_config_text(dir, sim_config_text(prefix, calibration));
 }
 
 }  // namespace exodaq::test

@@ -18,6 +18,17 @@ inline const std::string kRecordUrl = kLcmUrl + "&recv_buf_size=4194304";
 std::string write_sim_config(const std::string& dir, const std::string& prefix,
                              const std::string& calibration = {});
 
+// The text write_sim_config writes, for a test that edits it further
+// (replace_once) before writing it (write_config_text).
+std::string sim_config_text(const std::string& prefix, const std::string& calibration = {});
+
+// Replaces the one occurrence of `from`; throws when the text has none (the
+// config changed, and the test would run on settings it did not mean).
+void replace_once(std::string& text, const std::string& from, const std::string& to);
+
+// Writes `text` to dir/exodaqd.yaml; returns that path.
+std::string write_config_text(const std::string& dir, const std::string& text);
+
 template <typename Msg>
 Msg decode(const std::vector<std::uint8_t>& d) {
   Msg m;

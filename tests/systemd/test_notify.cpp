@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "process.hpp"
+#include "sim_daemon.hpp"
 
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
@@ -117,28 +118,18 @@ class NotifySocket {
 };
 
 // config/sim.yaml with absolute paths, a private LCM prefix and stderr logging;
+// `source_override`: what replaces its "source:\n  backend: sim\n" lines;
 // `sim_faults`: a source.sim.faults list to add.
 std::string write_config(const std::string& dir, const std::string& source_override = {},
                          const std::string& sim_faults = {}) {
-  std::string text = exodaq::test::read_file(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
-  const std::string cfg = std::string(EXODAQ_SOURCE_DIR) + "/config/";
-  text = std::regex_replace(text, std::regex("model: models/"), "model: " + cfg + "models/");
-  text = std::regex_replace(text, std::regex("task: tasks/"), "task: " + cfg + "tasks/");
-  text = std::regex_replace(text, std::regex("calibration: calibration/"),
-                            "calibration: " + cfg + "calibration/");
-  text = std::regex_replace(text, std::regex("prefix: \"\""),
-                            "prefix: \"" + exodaq::test::unique_prefix("notify") + "\"");
-  text = std::regex_replace(text, std::regex("sink: auto"), "sink: stderr");
-  if (!source_override.empty()) {
-    text = std::regex_replace(text, std::regex("source:\n  backend: sim\n"), source_override);
-  }
+  using exodaq::test::replace_once;
+  std::string text = exodaq::test::sim_config_text(exodaq::test::unique_prefix("notify"));
+  replace_once(text, "sink: auto", "sink: stderr");
+  if (!source_override.empty()) replace_once(text, "source:\n  backend: sim\n", source_override);
   if (!sim_faults.empty()) {
-    text = std::regex_replace(text, std::regex("    jitter_us: 0\n"),
-                              "    jitter_us: 0\n    faults: " + sim_faults + "\n");
+    replace_once(text, "    jitter_us: 0\n", "    jitter_us: 0\n    faults: " + sim_faults + "\n");
   }
-  const std::string path = dir + "/exodaqd.yaml";
-  std::ofstream(path) << text;
-  return path;
+  return exodaq::test::write_config_text(dir, text);
 }
 
 std::vector<Notification> lines_starting(const std::vector<Notification>& all,
