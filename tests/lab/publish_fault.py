@@ -44,7 +44,8 @@ import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from run_lab import RECEIVE_URL, PUBLISH_URL, Checks, run_in_lab, wait_line, write_config  # noqa: E402
+from run_lab import RECEIVE_URL, PUBLISH_URL, SOURCE_DIR, Checks, run_in_lab, wait_line  # noqa: E402
+from sim_config import write_sim_config  # noqa: E402
 
 ROUTE = ["224.0.0.0/4", "dev", "eth0"]
 STATE_NAMES = {0: "starting", 1: "homing", 2: "running", 3: "degraded", 4: "fault", 5: "stopping"}
@@ -94,7 +95,7 @@ def statuses(path):
 
 
 def run(lab, a, work):
-    config = write_config(work, a.prefix)
+    config = write_sim_config(SOURCE_DIR, work, a.prefix, url=PUBLISH_URL)
     d = os.path.join(work, "bmi")
     os.makedirs(d, exist_ok=True)
     decoder = lab.popen("bmi", [a.decoder, "--url", RECEIVE_URL, "--prefix", a.prefix,
