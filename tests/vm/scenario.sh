@@ -21,7 +21,8 @@
 #     sync_master: false), the daemon held off three times for 0.2 s
 #     (SIGSTOP/SIGCONT) while the board's frames queue in the kernel socket;
 #     the checker asserts every board cycle published once, in order, the
-#     stalls' samples LATE, no MISSING (issue 15).
+#     stalls' samples LATE, MISSING only while the board itself was silent
+#     for over 1.5 periods (issue 15).
 set -u
 B=/exodaq/bin
 C=/exodaq/config
@@ -189,7 +190,11 @@ for r in a b; do
   rc=$?
   echo "--- rig $r: checker ---"; cat $W/check-$r.log
   echo "--- rig $r: daemon (last 10 lines) ---"; tail -n 10 $W/daemon-$r.log
-  [ $rc -eq 0 ] || fail "rig $r: exodaq-vcan-check rc=$rc"
+  if [ $rc -ne 0 ]; then
+    echo "--- rig $r: daemon (every joint and sample event) ---"
+    grep -E " (warning|error) " $W/daemon-$r.log | grep -v "stale: no fresh count" | head -n 40
+    fail "rig $r: exodaq-vcan-check rc=$rc"
+  fi
   eval "kill -TERM \$DP_$r; wait \$DP_$r"
   rc=$?
   [ $rc -eq 0 ] || fail "rig $r: exodaqd exit code $rc after SIGTERM"
@@ -197,10 +202,11 @@ for r in a b; do
 done
 
 # --- 5. a free-running board, the daemon held off ------------------------
-# Off: its first run (2026-12-01, TCG at 100 Hz) failed "no MISSING sample while the
-# board ran" (74 MISSING and 1 out-of-order in 1841 cycles, 88 caught up after late
-# wakes); not yet understood (docs/can-protocol.md). Set to 1 to run it.
-FREE_RUNNING_STAGE=0
+# Under the emulator the board simulator is a process that is descheduled now
+# and then: the daemon must then say MISSING, in real time, once the board is
+# 1.5 periods overdue. The checker allows MISSING only where the kernel stamps
+# show such a silence (docs/can-protocol.md, "Late loop"). 0 to skip the stage.
+FREE_RUNNING_STAGE=1
 if [ $FREE_RUNNING_STAGE = 1 ]; then
   step "free-running board-sim + daemon (sync_master: false), three 0.2 s stalls"
   sed 's/sync_master: true /sync_master: false /' $CFG > $C/vcan-free.yaml

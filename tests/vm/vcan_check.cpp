@@ -18,8 +18,9 @@
 // --free-running (the board free-runs, the daemon follows it): also every
 // board cycle the board sent is published once, in order (no seq hole, no
 // board cycle skipped beyond kernel drops and the board's own send failures,
-// none repeated), no MISSING while the board runs, and each of the --stalls
-// times the daemon was held off (SIGSTOP) shows as a run of LATE samples.
+// none repeated), MISSING only where the board itself was silent for over
+// 1.5 periods (kernel stamps), and each of the --stalls times the daemon was
+// held off (SIGSTOP) shows as a run of LATE samples.
 // --live-out FILE also writes every received cycle (joint_state_t joined with
 // encoder_raw_t by seq) as text, for the host-side replay comparison
 // (vcan_replay_check.cpp); it does not take part in the checks.
@@ -241,12 +242,32 @@ void check_free_running(const std::vector<Rec>& recs, const std::vector<Truth>& 
   for (const Truth& t : truth) {
     if (t.k > first_k && t.k < prev_k && (t.faults & kNotSent) != 0) ++not_sent;
   }
-  // MISSING while the board ran; runs of LATE samples (a stall caught up).
-  std::int64_t missing = 0, late = 0, run = 0, long_runs = 0;
+  // MISSING while the board ran: due only where the board itself fell silent
+  // for more than 1.5 periods (drivers' free_running_board_overdue), seen in
+  // the kernel stamps of the samples around it. Under an emulator the board
+  // simulator is a process and is descheduled now and then; the daemon must
+  // then say MISSING in real time. Any other MISSING is invented.
+  const std::int64_t overdue_ns = 1'500'000'000 / rate;
+  std::int64_t missing = 0, invented = 0, widest_gap_ns = 0, prev_stamp = 0;
+  for (std::size_t s = first_present; s <= last_present && s < recs.size(); ++s) {
+    const Rec& r = recs[s];
+    if (r.raw && r.present) {
+      prev_stamp = r.wall_ns;
+      continue;
+    }
+    if (!r.raw) continue;
+    ++missing;
+    std::size_t n = s + 1;
+    while (n < last_present && !(recs[n].raw && recs[n].present)) ++n;
+    const std::int64_t gap = recs[n].wall_ns - prev_stamp;
+    widest_gap_ns = std::max(widest_gap_ns, gap);
+    if (gap <= overdue_ns) ++invented;
+  }
+  // Runs of LATE samples (a stall caught up).
+  std::int64_t late = 0, run = 0, long_runs = 0;
   const std::int64_t stall_run = std::max<std::int64_t>(2, rate * 15 / 100);  // of a 0.2 s stall
   for (std::size_t s = 0; s < recs.size(); ++s) {
     const Rec& r = recs[s];
-    if (s > first_present && s < last_present && r.raw && !r.present) ++missing;
     if (r.js && (r.sample_flags & 256U) != 0) {
       ++late;
       if (++run == stall_run) ++long_runs;
@@ -256,12 +277,14 @@ void check_free_running(const std::vector<Rec>& recs, const std::vector<Truth>& 
   }
   std::printf(
       "VCAN-CHECK: free-running: board cycles %lld..%lld, %lld skipped (%lld not sent by the "
-      "board, %lld kernel drops), %lld repeated, %lld MISSING while it ran, %lld LATE in %lld "
+      "board, %lld kernel drops), %lld repeated, %lld MISSING while it ran (%lld where the board "
+      "was not silent for over 1.5 periods; widest silence around one %.1f ms), %lld LATE in %lld "
       "runs of >= %lld, %lld seq holes, %lld overruns\n",
       static_cast<long long>(first_k), static_cast<long long>(prev_k),
       static_cast<long long>(skips), static_cast<long long>(not_sent),
       static_cast<long long>(last.rx_overflows), static_cast<long long>(repeats),
-      static_cast<long long>(missing), static_cast<long long>(late),
+      static_cast<long long>(missing), static_cast<long long>(invented),
+      static_cast<double>(widest_gap_ns) / 1e6, static_cast<long long>(late),
       static_cast<long long>(long_runs), static_cast<long long>(stall_run),
       static_cast<long long>(holes), static_cast<long long>(last.overruns));
   check(holes <= last.publish_failures,
@@ -271,7 +294,9 @@ void check_free_running(const std::vector<Rec>& recs, const std::vector<Truth>& 
         "free-running: every board cycle sent was published (" + std::to_string(skips) +
             " skipped <= " + std::to_string(not_sent) + " not sent + " +
             std::to_string(last.rx_overflows) + " kernel drops)");
-  check(missing == 0, "free-running: no MISSING sample while the board ran");
+  check(invented == 0,
+        "free-running: MISSING only where the board was silent for over 1.5 periods (" +
+            std::to_string(invented) + " of " + std::to_string(missing) + " were not)");
   check(long_runs >= stalls, "free-running: each stall's samples published, LATE (" +
                                  std::to_string(long_runs) + " runs >= " + std::to_string(stalls) +
                                  " stalls)");
