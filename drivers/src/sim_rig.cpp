@@ -675,7 +675,11 @@ int SimRig::apply_bus_faults(std::int64_t k, CycleFaults& f, SimBoard::Frames& o
 
 int SimRig::step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_ns,
                  std::int64_t wall_offset_ns) noexcept {
-  const std::int64_t t_ns = sample_offset_ns(k);
+  return step_at(k, sample_offset_ns(k), out, start_mono_ns, wall_offset_ns);
+}
+
+int SimRig::step_at(std::int64_t k, std::int64_t t_ns, SimBoard::Frames& out,
+                    std::int64_t start_mono_ns, std::int64_t wall_offset_ns) noexcept {
   const double t_s = static_cast<double>(t_ns) * 1e-9;
   BoardCycle c = sample_board(t_s);
   CycleFaults f = active_faults(k, t_s);

@@ -193,6 +193,7 @@ for r in a b; do
   if [ $rc -ne 0 ]; then
     echo "--- rig $r: daemon (every joint and sample event) ---"
     grep -E " (warning|error) " $W/daemon-$r.log | grep -v "stale: no fresh count" | head -n 40
+    echo "--- rig $r: board-sim ---"; cat $W/board-$r.log
     fail "rig $r: exodaq-vcan-check rc=$rc"
   fi
   eval "kill -TERM \$DP_$r; wait \$DP_$r"

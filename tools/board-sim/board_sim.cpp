@@ -24,8 +24,15 @@ int BoardSim::send(const drivers::can::CanFrame& frame) noexcept {
 }
 
 void BoardSim::cycle(std::int64_t k, std::int64_t start_mono_ns) {
+  send_cycle(rig_.step(k, frames_, start_mono_ns, 0));
+}
+
+void BoardSim::cycle_now(std::int64_t k, std::int64_t now_mono_ns, std::int64_t origin_mono_ns) {
+  send_cycle(rig_.step_at(k, now_mono_ns - origin_mono_ns, frames_, origin_mono_ns, 0));
+}
+
+void BoardSim::send_cycle(int n) {
   ++counters_.cycles;
-  const int n = rig_.step(k, frames_, start_mono_ns, 0);
   std::uint32_t bits = rig_.last_cycle().applied;
   for (int i = 0; i < n; ++i) {
     const auto& frame = frames_[static_cast<std::size_t>(i)];

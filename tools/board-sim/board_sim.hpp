@@ -36,6 +36,12 @@ class BoardSim {
   // Simulates cycle k, sampled at start_mono_ns + t_k, and sends its frames,
   // each no earlier than its stamp (a scripted delay).
   void cycle(std::int64_t k, std::int64_t start_mono_ns);
+  // Simulates cycle k sampled now, at `now_mono_ns` (`origin_mono_ns`: the
+  // instant of t = 0), and sends its frames: a board answering SYNC latches
+  // its counts when the SYNC reaches it, so the motion is taken at that
+  // instant, not at k periods (under an emulator the answer is late at times,
+  // and counts of t_k stamped at a later arrival would look like a glitch).
+  void cycle_now(std::int64_t k, std::int64_t now_mono_ns, std::int64_t origin_mono_ns);
 
   const Counters& counters() const noexcept { return counters_; }
   const sim::SimRig& rig() const noexcept { return rig_; }
@@ -46,6 +52,8 @@ class BoardSim {
  private:
   // 0, or −errno after a few tries on a full TX queue.
   int send(const drivers::can::CanFrame& frame) noexcept;
+  // Sends the n frames the rig made for the cycle just simulated; one truth line.
+  void send_cycle(int n);
   void write_truth(std::uint32_t bits) const;
 
   sim::SimRig rig_;

@@ -127,6 +127,7 @@ void run(const Cli& cli, const sim::SimOptions& options, CanPort& port, BoardSim
   const std::int64_t end =
       cli.duration_s > 0 ? start + static_cast<std::int64_t>(cli.duration_s * 1e9) : INT64_MAX;
   std::int64_t k = 0;
+  std::int64_t origin = 0;  // answering SYNC: the first SYNC's instant is t = 0
   while (!g_stop.load() && port.now_mono_ns() < end) {
     if (cli.free_run) {  // absolute deadlines: start + k * period
       exodaq::sleep_until_mono(start + k * options.period_ns);
@@ -139,9 +140,9 @@ void run(const Cli& cli, const sim::SimOptions& options, CanPort& port, BoardSim
       continue;
     }
     for (int s = receive_syncs(port, options.board.ids); s > 0; --s) {
-      // Sampled on the SYNC's arrival: t_k maps to now.
-      board.cycle(k, port.now_mono_ns() - board.rig().sample_offset_ns(k));
-      ++k;
+      const std::int64_t now = port.now_mono_ns();
+      if (k == 0) origin = now;
+      board.cycle_now(k++, now, origin);  // sampled on the SYNC's arrival, sent at once
     }
   }
 }

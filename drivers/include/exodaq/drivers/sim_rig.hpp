@@ -362,6 +362,10 @@ class SimRig {
   // time base (t_k, plus any scripted delay). Returns how many (0: lost).
   int step(std::int64_t k, SimBoard::Frames& out, std::int64_t start_mono_ns,
            std::int64_t wall_offset_ns) noexcept;
+  // The same, sampled at t_ns (from the time base's start) instead of t_k: a
+  // board that latches its counts when a SYNC reaches it (exodaq-board-sim).
+  int step_at(std::int64_t k, std::int64_t t_ns, SimBoard::Frames& out, std::int64_t start_mono_ns,
+              std::int64_t wall_offset_ns) noexcept;
   const SimCycle& last_cycle() const noexcept { return cycle_; }
   // How many cycles had each bit of SimCycle::applied set so far (by bit number).
   const std::array<std::int64_t, 32>& applied_counts() const noexcept { return applied_; }
