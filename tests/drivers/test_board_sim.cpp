@@ -98,6 +98,71 @@ TEST(BoardSim, SendsTheSharedRigsFramesThroughTheCanPortAndMarksTheTruth) {
   EXPECT_NE(summary.find(" glitch=200 "), std::string::npos) << summary;
 }
 
+// A board answering SYNC latches its counts when the SYNC reaches it. Answers
+// at irregular instants (every fifth 12 ms late, at 50 Hz) must carry the
+// motion of the instant the SYNC was read, go out at that instant, and name
+// it in the truth file; counts of k periods would look like a glitch to the
+// daemon (docs/simulator.md, "The board simulator").
+TEST(BoardSim, AnsweringSyncTakesTheMotionAtTheInstantTheSyncIsRead) {
+  sim::SimOptions o;
+  o.period_ns = 20'000'000;
+  MemoryCanPort port;
+  ASSERT_EQ(port.open(), 0);
+  std::FILE* truth = std::tmpfile();
+  ASSERT_NE(truth, nullptr);
+  BoardSim board(o, port, truth);
+  sim::SimRig at_instant(o);
+  sim::SimRig at_k_periods(o);
+  sim::SimBoard::Frames expected{};
+  sim::SimBoard::Frames nominal{};
+  const std::int64_t origin = port.mono;
+  std::vector<std::int64_t> t_ns;
+  std::size_t sent = 0;
+  int late_and_moved = 0;
+  for (std::int64_t k = 0; k < 1000; ++k) {
+    const std::int64_t t = k * o.period_ns + (k % 5 == 4 ? 12'000'000 : 0);
+    port.mono = origin + t;
+    board.cycle_now(k, port.mono, origin);
+    t_ns.push_back(t);
+    const int n = at_instant.step_at(k, t, expected, origin, 0);
+    at_k_periods.step(k, nominal, origin, 0);
+    ASSERT_EQ(port.sent.size(), sent + static_cast<std::size_t>(n)) << k;
+    bool moved = false;
+    for (int i = 0; i < n; ++i) {
+      const auto& a = port.sent[sent + static_cast<std::size_t>(i)];
+      const auto& b = expected[static_cast<std::size_t>(i)];
+      EXPECT_EQ(a.id, b.id) << k;
+      EXPECT_EQ(a.data, b.data) << k;
+      EXPECT_EQ(b.mono_ns, origin + t) << k;  // sent at once
+      moved = moved || a.data != nominal[static_cast<std::size_t>(i)].data;
+    }
+    if (k % 5 == 4 && moved) ++late_and_moved;
+    const auto& position = board.rig().last_cycle().position;
+    EXPECT_EQ(position, at_instant.last_cycle().position) << k;
+    if (k % 5 !=
+        4) {  // on time: the motion of k periods (index latches may differ after a late one)
+      EXPECT_EQ(position, at_k_periods.last_cycle().position) << k;
+    }
+    sent = port.sent.size();
+  }
+  EXPECT_GT(late_and_moved, 100);  // the rig moves: a late answer has other counts
+  std::rewind(truth);
+  char line[512];
+  std::size_t i = 0;
+  while (std::fgets(line, sizeof line, truth) != nullptr) {
+    long long k = -1;
+    unsigned seq = 0;
+    double t_s = -1;
+    ASSERT_EQ(std::sscanf(line, "%lld %u %lf", &k, &seq, &t_s), 3) << line;
+    ASSERT_LT(i, t_ns.size());
+    EXPECT_EQ(k, static_cast<long long>(i));
+    EXPECT_NEAR(t_s, static_cast<double>(t_ns[i]) * 1e-9, 1e-9) << k;
+    ++i;
+  }
+  std::fclose(truth);
+  EXPECT_EQ(i, t_ns.size());
+}
+
 TEST(BoardSim, AFrameThatCannotBeSentIsCountedAndMarked) {
   MemoryCanPort port;
   ASSERT_EQ(port.open(), 0);
