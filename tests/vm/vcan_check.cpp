@@ -215,6 +215,39 @@ void check(bool ok, const std::string& what) {
   if (!ok) ++g_failures;
 }
 
+// MISSING samples between the first and the last present one. They are due
+// only where the board itself fell silent for more than 1.5 periods (the
+// drivers' free_running_board_overdue, written out here rather than called, so
+// that a change to that rule fails this check), seen in the kernel stamps of
+// the present samples around them. Under an emulator the board simulator is a
+// process, descheduled now and then: the daemon must then say MISSING in real
+// time. Any other MISSING is invented.
+struct MissingSamples {
+  std::int64_t count = 0, invented = 0, widest_gap_ns = 0;
+};
+
+MissingSamples missing_between(const std::vector<Rec>& recs, std::size_t first, std::size_t last,
+                               std::int64_t rate) {
+  const std::int64_t overdue_ns = 1'500'000'000 / rate;
+  MissingSamples m;
+  std::int64_t prev_stamp = 0;
+  for (std::size_t s = first; s <= last && s < recs.size(); ++s) {
+    const Rec& r = recs[s];
+    if (!r.raw) continue;
+    if (r.present) {
+      prev_stamp = r.wall_ns;
+      continue;
+    }
+    ++m.count;
+    std::size_t n = s + 1;
+    while (n < last && !(recs[n].raw && recs[n].present)) ++n;
+    const std::int64_t gap = recs[n].wall_ns - prev_stamp;
+    m.widest_gap_ns = std::max(m.widest_gap_ns, gap);
+    if (gap <= overdue_ns) ++m.invented;
+  }
+  return m;
+}
+
 // A free-running board: every board cycle it sent published once, in order.
 void check_free_running(const std::vector<Rec>& recs, const std::vector<Truth>& truth,
                         const exodaq::status_t& last, std::int64_t holes, std::int64_t rate,
@@ -242,27 +275,7 @@ void check_free_running(const std::vector<Rec>& recs, const std::vector<Truth>& 
   for (const Truth& t : truth) {
     if (t.k > first_k && t.k < prev_k && (t.faults & kNotSent) != 0) ++not_sent;
   }
-  // MISSING while the board ran: due only where the board itself fell silent
-  // for more than 1.5 periods (drivers' free_running_board_overdue), seen in
-  // the kernel stamps of the samples around it. Under an emulator the board
-  // simulator is a process and is descheduled now and then; the daemon must
-  // then say MISSING in real time. Any other MISSING is invented.
-  const std::int64_t overdue_ns = 1'500'000'000 / rate;
-  std::int64_t missing = 0, invented = 0, widest_gap_ns = 0, prev_stamp = 0;
-  for (std::size_t s = first_present; s <= last_present && s < recs.size(); ++s) {
-    const Rec& r = recs[s];
-    if (r.raw && r.present) {
-      prev_stamp = r.wall_ns;
-      continue;
-    }
-    if (!r.raw) continue;
-    ++missing;
-    std::size_t n = s + 1;
-    while (n < last_present && !(recs[n].raw && recs[n].present)) ++n;
-    const std::int64_t gap = recs[n].wall_ns - prev_stamp;
-    widest_gap_ns = std::max(widest_gap_ns, gap);
-    if (gap <= overdue_ns) ++invented;
-  }
+  const MissingSamples m = missing_between(recs, first_present, last_present, rate);
   // Runs of LATE samples (a stall caught up).
   std::int64_t late = 0, run = 0, long_runs = 0;
   const std::int64_t stall_run = std::max<std::int64_t>(2, rate * 15 / 100);  // of a 0.2 s stall
@@ -283,8 +296,8 @@ void check_free_running(const std::vector<Rec>& recs, const std::vector<Truth>& 
       static_cast<long long>(first_k), static_cast<long long>(prev_k),
       static_cast<long long>(skips), static_cast<long long>(not_sent),
       static_cast<long long>(last.rx_overflows), static_cast<long long>(repeats),
-      static_cast<long long>(missing), static_cast<long long>(invented),
-      static_cast<double>(widest_gap_ns) / 1e6, static_cast<long long>(late),
+      static_cast<long long>(m.count), static_cast<long long>(m.invented),
+      static_cast<double>(m.widest_gap_ns) / 1e6, static_cast<long long>(late),
       static_cast<long long>(long_runs), static_cast<long long>(stall_run),
       static_cast<long long>(holes), static_cast<long long>(last.overruns));
   check(holes <= last.publish_failures,
@@ -294,9 +307,9 @@ void check_free_running(const std::vector<Rec>& recs, const std::vector<Truth>& 
         "free-running: every board cycle sent was published (" + std::to_string(skips) +
             " skipped <= " + std::to_string(not_sent) + " not sent + " +
             std::to_string(last.rx_overflows) + " kernel drops)");
-  check(invented == 0,
+  check(m.invented == 0,
         "free-running: MISSING only where the board was silent for over 1.5 periods (" +
-            std::to_string(invented) + " of " + std::to_string(missing) + " were not)");
+            std::to_string(m.invented) + " of " + std::to_string(m.count) + " were not)");
   check(long_runs >= stalls, "free-running: each stall's samples published, LATE (" +
                                  std::to_string(long_runs) + " runs >= " + std::to_string(stalls) +
                                  " stalls)");
