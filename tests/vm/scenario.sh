@@ -206,43 +206,40 @@ done
 # Under the emulator the board simulator is a process that is descheduled now
 # and then: the daemon must then say MISSING, in real time, once the board is
 # 1.5 periods overdue. The checker allows MISSING only where the kernel stamps
-# show such a silence (docs/can-protocol.md, "Late loop"). 0 to skip the stage.
-FREE_RUNNING_STAGE=1
-if [ $FREE_RUNNING_STAGE = 1 ]; then
-  step "free-running board-sim + daemon (sync_master: false), three 0.2 s stalls"
-  sed 's/sync_master: true /sync_master: false /' $CFG > $C/vcan-free.yaml
-  grep -q "sync_master: false " $C/vcan-free.yaml || fail "cannot set sync_master: false"
-  $B/exodaq-vcan-check --config $C/vcan-free.yaml --truth $W/truth-free.txt \
-    --board-log $W/board-free.log --no-faults --free-running --stalls 3 > $W/check-free.log 2>&1 &
-  CK=$!
-  $B/exodaqd --config $C/vcan-free.yaml --log-level info > $W/daemon-free.log 2>&1 &
-  DP=$!
-  sleep 1
-  $B/exodaq-board-sim --iface vcan0 --config $C/vcan-free.yaml --free-run \
-    --truth $W/truth-free.txt 2> $W/board-free.log &
-  BS=$!
-  for at in 12 13 14; do  # simulated seconds, after homing
-    while [ "$(wc -l < $W/truth-free.txt 2>/dev/null || echo 0)" -lt $((at * RATE)) ]; do
-      kill -0 $DP 2>/dev/null || { fail "exodaqd died (free-running)"; break; }
-      sleep 0.2
-    done
-    kill -STOP $DP; sleep 0.2; kill -CONT $DP
-  done
-  while [ "$(wc -l < $W/truth-free.txt 2>/dev/null || echo 0)" -lt $((17 * RATE)) ]; do
+# show such a silence (docs/can-protocol.md, "Late loop").
+step "free-running board-sim + daemon (sync_master: false), three 0.2 s stalls"
+sed 's/sync_master: true /sync_master: false /' $CFG > $C/vcan-free.yaml
+grep -q "sync_master: false " $C/vcan-free.yaml || fail "cannot set sync_master: false"
+$B/exodaq-vcan-check --config $C/vcan-free.yaml --truth $W/truth-free.txt \
+  --board-log $W/board-free.log --no-faults --free-running --stalls 3 > $W/check-free.log 2>&1 &
+CK=$!
+$B/exodaqd --config $C/vcan-free.yaml --log-level info > $W/daemon-free.log 2>&1 &
+DP=$!
+sleep 1
+$B/exodaq-board-sim --iface vcan0 --config $C/vcan-free.yaml --free-run \
+  --truth $W/truth-free.txt 2> $W/board-free.log &
+BS=$!
+for at in 12 13 14; do  # simulated seconds, after homing
+  while [ "$(lines $W/truth-free.txt)" -lt $((at * RATE)) ]; do
     kill -0 $DP 2>/dev/null || { fail "exodaqd died (free-running)"; break; }
-    sleep 0.5
+    sleep 0.2
   done
-  kill -0 $DP 2>/dev/null || fail "exodaqd is not running at the end (free-running)"
-  kill -TERM $BS; wait $BS
-  kill -TERM $CK; wait $CK
-  CKRC=$?
-  kill -TERM $DP; wait $DP
-  DRC=$?
-  step "free-running done"
-  echo "--- board-sim (free-running) ---"; cat $W/board-free.log
-  echo "--- daemon (free-running, last 20 lines) ---"; tail -n 20 $W/daemon-free.log
-  echo "--- checker (free-running) ---"; cat $W/check-free.log
-  [ $CKRC -eq 0 ] || fail "exodaq-vcan-check (free-running) rc=$CKRC"
-  [ $DRC -eq 0 ] || fail "exodaqd (free-running) exit code $DRC after SIGTERM"
-fi
+  kill -STOP $DP; sleep 0.2; kill -CONT $DP
+done
+while [ "$(lines $W/truth-free.txt)" -lt $((17 * RATE)) ]; do
+  kill -0 $DP 2>/dev/null || { fail "exodaqd died (free-running)"; break; }
+  sleep 0.5
+done
+kill -0 $DP 2>/dev/null || fail "exodaqd is not running at the end (free-running)"
+kill -TERM $BS; wait $BS
+kill -TERM $CK; wait $CK
+CKRC=$?
+kill -TERM $DP; wait $DP
+DRC=$?
+step "free-running done"
+echo "--- board-sim (free-running) ---"; cat $W/board-free.log
+echo "--- daemon (free-running, last 20 lines) ---"; tail -n 20 $W/daemon-free.log
+echo "--- checker (free-running) ---"; cat $W/check-free.log
+[ $CKRC -eq 0 ] || fail "exodaq-vcan-check (free-running) rc=$CKRC"
+[ $DRC -eq 0 ] || fail "exodaqd (free-running) exit code $DRC after SIGTERM"
 exit $RC
