@@ -36,11 +36,9 @@ class BoardSim {
   // Simulates cycle k, sampled at start_mono_ns + t_k, and sends its frames,
   // each no earlier than its stamp (a scripted delay).
   void cycle(std::int64_t k, std::int64_t start_mono_ns);
-  // Simulates cycle k sampled now, at `now_mono_ns` (`origin_mono_ns`: the
-  // instant of t = 0), and sends its frames: a board answering SYNC latches
-  // its counts when the SYNC reaches it, so the motion is taken at that
-  // instant, not at k periods (under an emulator the answer is late at times,
-  // and counts of t_k stamped at a later arrival would look like a glitch).
+  // Simulates cycle k sampled at `now_mono_ns` (t = now - `origin_mono_ns`,
+  // not k periods) and sends its frames at once: a board answering SYNC
+  // latches its counts when the SYNC reaches it (docs/simulator.md).
   void cycle_now(std::int64_t k, std::int64_t now_mono_ns, std::int64_t origin_mono_ns);
 
   const Counters& counters() const noexcept { return counters_; }
