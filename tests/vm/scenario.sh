@@ -32,6 +32,7 @@ RC=0
 t() { cut -d' ' -f1 /proc/uptime; }
 step() { echo "VM-STEP: $* (t=$(t)s)"; }
 fail() { echo "VM-FAIL: $*"; RC=1; }
+lines() { (wc -l < "$1") 2>/dev/null || echo 0; }  # 0 until the file exists
 
 # Loop rate: exodaq.rate=N on the kernel command line (run-vm-tests sets 1000
 # under KVM; under TCG emulation the guest runs ~10-30x slower than the host and
@@ -90,7 +91,7 @@ $B/exodaq-board-sim --iface vcan0 --config $CFG --truth $W/truth.txt \
 BS=$!
 step "board-sim started"
 # Wait until the board simulator has simulated 19 s.
-while [ "$(wc -l < $W/truth.txt 2>/dev/null || echo 0)" -lt $((19 * RATE)) ]; do
+while [ "$(lines $W/truth.txt)" -lt $((19 * RATE)) ]; do
   kill -0 $DP 2>/dev/null || { fail "exodaqd died"; break; }
   sleep 0.5
 done
@@ -174,7 +175,6 @@ for r in a b; do
   eval BS_$r=$!
 done
 # Until both boards have simulated 18 s (homed by ~11.5 s).
-lines() { (wc -l < "$1") 2>/dev/null || echo 0; }
 while [ "$(lines $W/truth-a.txt)" -lt $((18 * RATE2)) ] ||
   [ "$(lines $W/truth-b.txt)" -lt $((18 * RATE2)) ]; do
   kill -0 $DP_a 2>/dev/null || { fail "rig A's exodaqd died"; break; }
