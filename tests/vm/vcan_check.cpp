@@ -224,6 +224,7 @@ void check(bool ok, const std::string& what) {
 // time. Any other MISSING is invented.
 struct MissingSamples {
   std::int64_t count = 0, invented = 0, widest_gap_ns = 0;
+  std::string invented_at;  // "seq N (gap G ms)" of the first few invented
 };
 
 MissingSamples missing_between(const std::vector<Rec>& recs, std::size_t first, std::size_t last,
@@ -243,7 +244,13 @@ MissingSamples missing_between(const std::vector<Rec>& recs, std::size_t first, 
     while (n < last && !(recs[n].raw && recs[n].present)) ++n;
     const std::int64_t gap = recs[n].wall_ns - prev_stamp;
     m.widest_gap_ns = std::max(m.widest_gap_ns, gap);
-    if (gap <= overdue_ns) ++m.invented;
+    if (gap > overdue_ns) continue;
+    if (++m.invented <= 5) {
+      char at[64];
+      std::snprintf(at, sizeof at, "%sseq %zu (gap %.2f ms)", m.invented_at.empty() ? "" : ", ", s,
+                    static_cast<double>(gap) / 1e6);
+      m.invented_at += at;
+    }
   }
   return m;
 }
@@ -309,7 +316,8 @@ void check_free_running(const std::vector<Rec>& recs, const std::vector<Truth>& 
             std::to_string(last.rx_overflows) + " kernel drops)");
   check(m.invented == 0,
         "free-running: MISSING only where the board was silent for over 1.5 periods (" +
-            std::to_string(m.invented) + " of " + std::to_string(m.count) + " were not)");
+            std::to_string(m.invented) + " of " + std::to_string(m.count) + " were not" +
+            (m.invented_at.empty() ? "" : ": " + m.invented_at) + ")");
   check(long_runs >= stalls, "free-running: each stall's samples published, LATE (" +
                                  std::to_string(long_runs) + " runs >= " + std::to_string(stalls) +
                                  " stalls)");
