@@ -60,6 +60,7 @@ std::unique_ptr<PipelineConfig> make_pipeline_config(const config::ServiceConfig
     t.upper_rad = joints[static_cast<std::size_t>(i)].limits.upper;
     t.limit_margin_rad = c.encoders.limit_margin_deg * config::kDegToRad;
     t.max_speed_rad_s = e.max_speed_rad_s * c.encoders.speed_margin;
+    t.board_period_ns = config::period_ns(c);
     t.index_tolerance_counts = c.encoders.index_tolerance_counts;
     t.stale_ns = static_cast<std::int64_t>(c.encoders.stale_ms * 1e6);
     t.fault_hold_ns = static_cast<std::int64_t>(c.encoders.fault_hold_ms * 1e6);

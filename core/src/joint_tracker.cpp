@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "exodaq/drivers/can_codec.hpp"
+
 namespace exodaq::core {
 
 namespace {
@@ -194,12 +196,12 @@ void JointTracker::update_velocity(std::int64_t t_ns) noexcept {
   reading_.velocity_rad_s = config_.direction * slope * rad_per_count_;
 }
 
-JointEvent JointTracker::update(std::int64_t t_ns, bool fresh, std::uint16_t count16,
+JointEvent JointTracker::update(std::int64_t t_ns, int board_seq, bool fresh, std::uint16_t count16,
                                 bool index_valid, std::uint16_t index_count16,
                                 bool board_error) noexcept {
   JointEvent event = JointEvent::kNone;
   if (fresh) {
-    take_count(t_ns, count16, event);
+    take_count(t_ns, board_seq, count16, event);
   } else if (have_count_ && t_ns - last_fresh_ns_ > config_.stale_ns && !stale_) {
     stale_ = true;
     ++counters_.stale_events;
@@ -217,7 +219,18 @@ JointEvent JointTracker::update(std::int64_t t_ns, bool fresh, std::uint16_t cou
   return event;
 }
 
-void JointTracker::take_count(std::int64_t t_ns, std::uint16_t count16,
+std::int64_t JointTracker::interval_since_fresh(std::int64_t t_ns, int board_seq) const noexcept {
+  // Receive instants jitter with the bus and the host (a board that sent two
+  // cycles back to back after a stall); the board's cycles do not. The longer
+  // of the two bounds the motion: a forward step of 1..127 board cycles.
+  const std::int64_t received = t_ns - last_fresh_ns_;
+  if (config_.board_period_ns <= 0 || board_seq < 0 || last_fresh_board_seq_ < 0) return received;
+  const int cycles = drivers::can::seq_delta(static_cast<std::uint8_t>(last_fresh_board_seq_),
+                                             static_cast<std::uint8_t>(board_seq));
+  return std::max(received, cycles > 0 ? cycles * config_.board_period_ns : 0);
+}
+
+void JointTracker::take_count(std::int64_t t_ns, int board_seq, std::uint16_t count16,
                               JointEvent& event) noexcept {
   if (!have_count_) {
     have_count_ = true;
@@ -230,7 +243,7 @@ void JointTracker::take_count(std::int64_t t_ns, std::uint16_t count16,
     }
   } else {
     const std::int64_t step = step16(count_, count16);
-    const double dt_s = static_cast<double>(t_ns - last_fresh_ns_) * 1e-9;
+    const double dt_s = static_cast<double>(interval_since_fresh(t_ns, board_seq)) * 1e-9;
     // The most counts the joint can physically produce since the last fresh
     // count, plus one count of quantisation.
     const double max_counts = config_.max_speed_rad_s * (dt_s > 0 ? dt_s : 0.0) / rad_per_count_;
@@ -247,6 +260,7 @@ void JointTracker::take_count(std::int64_t t_ns, std::uint16_t count16,
     count_ += step;
   }
   last_fresh_ns_ = t_ns;
+  last_fresh_board_seq_ = board_seq;
   stale_ = false;
   update_velocity(t_ns);
 }

@@ -37,8 +37,8 @@ void Pipeline::process(const drivers::EncoderSample& sample, std::uint32_t extra
     const bool fresh = sample.present && (sample.channel_fresh & bit) != 0;
     const bool index_valid = sample.present && (sample.index_count_valid & bit) != 0;
     out.events[static_cast<std::size_t>(i)] = tracker.update(
-        sample.mono_ns, fresh, sample.count16[static_cast<std::size_t>(ch)], index_valid,
-        sample.index_count16[static_cast<std::size_t>(ch)], board_error);
+        sample.mono_ns, sample.board_seq, fresh, sample.count16[static_cast<std::size_t>(ch)],
+        index_valid, sample.index_count16[static_cast<std::size_t>(ch)], board_error);
     const JointReading& r = tracker.reading();
     out.joints[static_cast<std::size_t>(i)] = r;
     q_[i] = r.position_rad;

@@ -38,7 +38,7 @@ JointTrackerConfig base_config() {
 // Feeds `count` (unwrapped, any int64) as its low 16 bits.
 JointEvent feed(JointTracker& t, std::int64_t ms, std::int64_t count, bool index = false,
                 std::int64_t index_count = 0) {
-  return t.update(ms * kMs, true, static_cast<std::uint16_t>(count & 0xFFFF), index,
+  return t.update(ms * kMs, -1, true, static_cast<std::uint16_t>(count & 0xFFFF), index,
                   static_cast<std::uint16_t>(index_count & 0xFFFF), false);
 }
 }  // namespace
@@ -179,15 +179,87 @@ TEST(JointTracker, MaxPlausibleSpeedIsNotAGlitch) {
   EXPECT_EQ(feed(t, 2, 5), JointEvent::kGlitch);
 }
 
+namespace {
+// A board that stalled and then sent its queued cycles back to back: the
+// receive stamps are 50 us apart, the board's cycles 1 ms. The joint moves at
+// 0.9 of its bound throughout (1.38 counts per board cycle).
+struct Burst {
+  std::int64_t received_ns;
+  int board_seq;
+  std::int64_t count;
+};
+std::vector<Burst> stalled_then_burst() {
+  std::vector<Burst> b;
+  for (int k = 0; k < 40; ++k) {
+    const std::int64_t rx = k < 20 ? k * kMs : 30 * kMs + (k - 20) * 50'000;
+    b.push_back({rx, (250 + k) % 256, std::llround(k * 1.38)});  // wraps 255 -> 0
+  }
+  return b;
+}
+}  // namespace
+
+TEST(JointTracker, ABoardsQueuedCyclesArrivingTogetherAreNoGlitch) {
+  auto c = base_config();
+  c.board_period_ns = kMs;
+  JointTracker t(c);
+  for (const Burst& s : stalled_then_burst()) {
+    t.update(s.received_ns, s.board_seq, true, static_cast<std::uint16_t>(s.count), false, 0,
+             false);
+    ASSERT_EQ(t.reading().flags & jf::kGlitch, 0u) << "board cycle " << s.board_seq;
+  }
+  EXPECT_EQ(t.counters().glitches, 0);
+  // Without the board's cycles (period unknown) the same stream is judged by
+  // its receive stamps alone: the burst looks 20x too fast.
+  c.board_period_ns = 0;
+  JointTracker by_stamps(c);
+  for (const Burst& s : stalled_then_burst()) {
+    by_stamps.update(s.received_ns, s.board_seq, true, static_cast<std::uint16_t>(s.count), false,
+                     0, false);
+  }
+  EXPECT_GT(by_stamps.counters().glitches, 0);
+}
+
+TEST(JointTracker, ABoardCycleGivesNoMoreTimeThanItsPeriod) {
+  auto c = base_config();
+  c.board_period_ns = kMs;
+  JointTracker t(c);
+  t.update(0, 10, true, 0, false, 0, false);
+  // Next board cycle, stamped 1 ms later: 1000 counts is still a glitch.
+  EXPECT_EQ(t.update(kMs, 11, true, 1000, false, 0, false), JointEvent::kGlitch);
+}
+
+TEST(JointTracker, AnOlderOrRepeatedBoardCycleGivesOnlyTheReceiveInterval) {
+  auto c = base_config();
+  c.board_period_ns = kMs;
+  for (const int seq : {10, 9, 138}) {  // same, older, 128 ahead (= 128 behind)
+    JointTracker t(c);
+    t.update(0, 10, true, 0, false, 0, false);
+    // 0.96 rad/s over the 1 ms receive interval: 2 counts pass, 3 do not.
+    EXPECT_EQ(t.update(kMs, seq, true, 2, false, 0, false), JointEvent::kNone) << seq;
+    EXPECT_EQ(t.update(2 * kMs, seq, true, 5, false, 0, false), JointEvent::kGlitch) << seq;
+  }
+}
+
+TEST(JointTracker, ALongBoardGapAllowsTheTravelOfItsCycles) {
+  auto c = base_config();
+  c.board_period_ns = kMs;
+  JointTracker t(c);
+  t.update(0, 0, true, 0, false, 0, false);
+  // 100 board cycles later (frames lost), received 1 ms after the last one:
+  // 100 ms at 0.96 rad/s is 152.8 counts.
+  EXPECT_EQ(t.update(kMs, 100, true, 150, false, 0, false), JointEvent::kNone);
+  EXPECT_EQ(t.update(2 * kMs, 200, true, 150 + 160, false, 0, false), JointEvent::kGlitch);
+}
+
 TEST(JointTracker, StaleAfterConfiguredTimeWithoutAFreshCount) {
   JointTracker t(base_config());
   feed(t, 0, 0);
   for (int ms = 1; ms <= 20; ++ms) {
-    EXPECT_EQ(t.update(ms * kMs, false, 0, false, 0, false), JointEvent::kNone);
+    EXPECT_EQ(t.update(ms * kMs, -1, false, 0, false, 0, false), JointEvent::kNone);
     EXPECT_TRUE(t.reading().flags & jf::kHeld);
     EXPECT_EQ(t.reading().flags & jf::kStale, 0u);
   }
-  EXPECT_EQ(t.update(21 * kMs, false, 0, false, 0, false), JointEvent::kStale);
+  EXPECT_EQ(t.update(21 * kMs, -1, false, 0, false, 0, false), JointEvent::kStale);
   EXPECT_TRUE(t.reading().flags & jf::kStale);
   EXPECT_EQ(t.counters().stale_events, 1);
   feed(t, 22, 0);
@@ -279,7 +351,7 @@ TEST(JointTracker, VelocityFromRunningSumsMatchesTheTwoPassFit) {
     const double s = k * 1e-3;
     const auto count =
         static_cast<std::int64_t>(std::floor(3000.0 * std::sin(0.7 * s) + 40.0 * s * s));
-    t.update(tk, true, static_cast<std::uint16_t>(count & 0xFFFF), false, 0, false);
+    t.update(tk, -1, true, static_cast<std::uint16_t>(count & 0xFFFF), false, 0, false);
     ts.push_back(tk);
     cs.push_back(count);
     if (ts.size() > 21) {

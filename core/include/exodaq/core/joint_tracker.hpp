@@ -49,6 +49,9 @@ struct JointTrackerConfig {
   double upper_rad = 3.14159;
   double limit_margin_rad = 0.0349;  // out-of-range margin beyond the limits
   double max_speed_rad_s = 5.0;      // glitch bound (already including its margin)
+  // The board's sample period (0: unknown). The glitch bound's interval is the
+  // longer of the receive instants' and the board cycles' (docs/robustness.md).
+  std::int64_t board_period_ns = 0;
   std::int64_t index_tolerance_counts = 2;
   std::int64_t stale_ns = 20'000'000;
   std::int64_t fault_hold_ns = 100'000'000;  // how long kLostCounts stays after a correction
@@ -120,8 +123,9 @@ class JointTracker {
 
   // One cycle. `fresh`: a new count arrived for this joint this cycle.
   // `index_valid`: index_count16 holds the count latched at an index edge.
+  // `board_seq`: the sample's board cycle (0..255, -1: none).
   // Returns the most important event of the cycle (kNone usually).
-  JointEvent update(std::int64_t sample_mono_ns, bool fresh, std::uint16_t count16,
+  JointEvent update(std::int64_t sample_mono_ns, int board_seq, bool fresh, std::uint16_t count16,
                     bool index_valid, std::uint16_t index_count16, bool board_error) noexcept;
 
   // Continues a live run from a recording's first sample (replay): the first
@@ -135,7 +139,10 @@ class JointTracker {
   const JointTrackerConfig& config() const noexcept { return config_; }
 
  private:
-  void take_count(std::int64_t t_ns, std::uint16_t count16, JointEvent& event) noexcept;
+  void take_count(std::int64_t t_ns, int board_seq, std::uint16_t count16,
+                  JointEvent& event) noexcept;
+  // How long the joint had to move since its last fresh count.
+  std::int64_t interval_since_fresh(std::int64_t t_ns, int board_seq) const noexcept;
   void home_on_index(std::int64_t index_count, JointEvent& event) noexcept;
   // Homed: the index verifies the count, or re-homes when counts were lost.
   void check_index(std::int64_t t_ns, std::int64_t index_count, JointEvent& event) noexcept;
@@ -149,6 +156,7 @@ class JointTracker {
   bool have_count_ = false;
   std::int64_t count_ = 0;
   std::int64_t last_fresh_ns_ = 0;
+  int last_fresh_board_seq_ = -1;
   std::int64_t powerup_count_ = 0;
   bool resume_pending_ = false;  // resume(): the first count continues resume_count_
   std::int64_t resume_count_ = 0;
