@@ -128,7 +128,7 @@ ReadStatus SimSource::read_free_running(const CycleTime& time, EncoderSample& ou
     last_delivered_mono_ns_ = out.mono_ns;
     return ReadStatus::kSample;
   }
-  if (!free_running_board_overdue(last_delivered_mono_ns_, waited, period))
+  if (!free_running_board_overdue(decoder_, last_delivered_mono_ns_, waited, period))
     return ReadStatus::kNothingDue;
   decoder_.make_missing(out, time.deadline_mono_ns, time.deadline_mono_ns + wall_offset_ns_);
   return ReadStatus::kNoSample;

@@ -257,18 +257,26 @@ ReadStatus SocketCanSource::read_free_running(const CycleTime& time, std::int64_
   } else {
     receive_until(poll_deadline(start, period), 0);
   }
-  // Every complete cycle, oldest first: none is superseded.
-  if (decoder_.poll_sample(out) || flush_partial(false, 0, period, out)) {
-    last_delivered_mono_ = out.mono_ns;
-    return ReadStatus::kSample;
-  }
+  if (take_queued(period, out)) return ReadStatus::kSample;
   if (time.catch_up) return ReadStatus::kNothingDue;
-  // Not overdue yet: the board's clock drifted just past this wake, the next
-  // wake brings two. Down, or overdue: MISSING, every wake.
-  if (up_ && !free_running_board_overdue(last_delivered_mono_, port_->now_mono_ns(), period))
-    return ReadStatus::kNothingDue;
+  if (up_) {
+    // Not overdue yet: the board's clock drifted just past this wake, the next
+    // wake brings two. Overdue at `now`: whatever reached the socket before
+    // `now` (the reader may have been descheduled since its last look) is
+    // taken first; only then MISSING, every wake.
+    if (!free_running_board_overdue(decoder_, last_delivered_mono_, port_->now_mono_ns(), period))
+      return ReadStatus::kNothingDue;
+    if (drain() && take_queued(period, out)) return ReadStatus::kSample;
+  }
   decoder_.make_missing(out, start, start + offset_ns_);
   return ReadStatus::kNoSample;
+}
+
+bool SocketCanSource::take_queued(std::int64_t period, EncoderSample& out) noexcept {
+  // Every complete cycle, oldest first: none is superseded.
+  if (!decoder_.poll_sample(out) && !flush_partial(false, 0, period, out)) return false;
+  last_delivered_mono_ = out.mono_ns;
+  return true;
 }
 
 }  // namespace exodaq::drivers

@@ -35,6 +35,8 @@ class MemoryCanPort final : public drivers::CanPort {
   std::int64_t pending_drops = 0;     // reported by the next receive (SO_RXQ_OVFL)
   int open_calls = 0;
   std::vector<Frame> sent;
+  // Called before each clock reading, may move `mono` on (not allocation-free).
+  std::function<void(MemoryCanPort&)> on_now;
   // Called for each frame sent (e.g. a board answering SYNC).
   std::function<void(const Frame&, MemoryCanPort&)> on_send;
   // The socket's receive filter: frames it refuses are not queued (empty: all
@@ -130,7 +132,10 @@ class MemoryCanPort final : public drivers::CanPort {
     return 0;
   }
 
-  std::int64_t now_mono_ns() noexcept override { return mono; }
+  std::int64_t now_mono_ns() noexcept override {
+    if (on_now) on_now(*this);  // e.g. the reader descheduled just before it reads the clock
+    return mono;
+  }
   std::int64_t now_wall_ns() noexcept override { return mono + kWallOffsetNs; }
 
  private:

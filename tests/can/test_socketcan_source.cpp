@@ -498,6 +498,67 @@ TEST(SocketCanSource, FreeRunningNothingDueUntilTheBoardIsOverdue) {
   EXPECT_EQ(f.source->stats().superseded_samples, 0);
 }
 
+// Following a free-running board, the reader is descheduled for 100 µs after
+// its poll deadline, just before it reads the clock to judge the board
+// overdue; the board's cycle reached the socket 50 µs after that deadline.
+// It is taken, not declared MISSING with the frames already queued (the VM's
+// free-running stage under host load, CI of stop 22).
+TEST(SocketCanSource, FreeRunningACycleQueuedBeforeTheOverdueClockReadingIsTaken) {
+  Fixture f(false);
+  f.source->start();
+  const auto counts = [&](std::uint8_t seq, std::int64_t at) {
+    f.port->push(can::encode_counts(0, {1, 2, 3}, 0, seq), at);
+    f.port->push(can::encode_counts(1, {4, 5, 6}, 0, seq), at + 10'000);
+  };
+  counts(0, f.deadline(0) + 390'000);
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);  // silent, 1.0 periods: not overdue
+  const std::int64_t poll_deadline = f.deadline(2) + 400'000;
+  counts(1, poll_deadline + 40'000);  // complete 50 µs after the poll deadline
+  bool descheduled = false;
+  f.port->on_now = [&](MemoryCanPort& p) {
+    if (descheduled || p.mono < poll_deadline) return;
+    descheduled = true;
+    p.mono += 100'000;
+  };
+  ASSERT_EQ(f.cycle(2), ReadStatus::kSample);
+  EXPECT_TRUE(descheduled);
+  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.mono_ns, poll_deadline + 50'000);
+  EXPECT_EQ(f.source->stats().missing_samples, 0);
+  // Then silence: not overdue at the next poll deadline (0.95 periods), then
+  // overdue with nothing queued: MISSING.
+  EXPECT_EQ(f.cycle(3), ReadStatus::kNothingDue);
+  EXPECT_EQ(f.cycle(4), ReadStatus::kNoSample);
+  EXPECT_EQ(f.source->stats().missing_samples, 1);
+}
+
+// Following a free-running board that stops half-way through a cycle: its
+// COUNTS_A comes 1.17 periods after the last sample, COUNTS_B never. The
+// reader wakes late, 1.56 periods after that sample and 0.39 after the half:
+// the board was heard from, so nothing is due (not MISSING); the next wake
+// flushes the half as PARTIAL, stamped when it came; MISSING only once that
+// is 1.5 periods old. (The VM's free-running stage: the board simulator killed
+// between the two frames of its last cycle gave a MISSING inside a 1.2-period
+// silence, CI of stop 22.)
+TEST(SocketCanSource, FreeRunningAHalfCycleIsNotSilence) {
+  Fixture f(false);
+  f.source->start();
+  f.port->push(can::encode_counts(0, {1, 2, 3}, 0, 0), f.deadline(0) + 380'000);
+  f.port->push(can::encode_counts(1, {4, 5, 6}, 0, 0), f.deadline(0) + 390'000);
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  const std::int64_t half_at = f.deadline(1) + 560'000;
+  f.port->push(can::encode_counts(0, {7, 8, 9}, 0, 1), half_at);
+  f.port->advance_to(f.deadline(1) + 950'000);     // a late wake
+  EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);  // overdue, were the half not heard
+  ASSERT_EQ(f.cycle(2), ReadStatus::kSample);      // the half is over half a period old
+  EXPECT_NE(f.sample.flags & sample_flag::kPartial, 0U);
+  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.mono_ns, half_at);
+  EXPECT_EQ(f.cycle(3), ReadStatus::kNoSample);  // 1.84 periods since the half: MISSING
+  EXPECT_EQ(f.source->stats().missing_samples, 1);
+}
+
 // Sync master, the loop 2.5 ms late: the SYNC leaves late and is counted; the
 // reader waits for its answer from the SYNC on (not from the missed
 // deadline, whose poll deadline has long passed), so the sample arrives with

@@ -6,6 +6,7 @@
 // owner thread). Cycle assembly, time stamps, sequence handling,
 // resynchronisation and which sample carries which flag:
 // docs/can-protocol.md ("Cycle assembly and sequence handling").
+#include <algorithm>
 #include <array>
 #include <cstdint>
 
@@ -45,15 +46,6 @@ struct BoardDecoderStats {
 // newest cycle): `newer` keeps older's event flags and index latches, so
 // nothing is lost but the intermediate counts, which unwrapping bridges.
 void merge_superseded(const EncoderSample& older, EncoderSample& newer) noexcept;
-
-// Following a free-running board: it is overdue when the last sample
-// delivered is more than one and a half periods old at `now` (or none came
-// yet). Before that, a wake without a new sample has nothing to publish: the
-// board's clock drifted just past the wake, and the next wake brings two.
-inline bool free_running_board_overdue(std::int64_t last_delivered_mono, std::int64_t now,
-                                       std::int64_t period) noexcept {
-  return last_delivered_mono == 0 || now - last_delivered_mono > period + period / 2;
-}
 
 class BoardDecoder {
  public:
@@ -159,5 +151,18 @@ class BoardDecoder {
   std::uint32_t board_errors_ = 0;  // errors | channel bits << 8
   std::uint32_t board_state_ = 0;
 };
+
+// Following a free-running board: it is overdue when it was last heard from
+// (the last sample delivered, or the first half of a cycle still waiting for
+// its second) more than one and a half periods before `now`, or never. Before
+// that, a wake without a new sample has nothing to publish: the board's clock
+// drifted just past the wake (the next wake brings two), or a half waits to be
+// completed or flushed as PARTIAL.
+inline bool free_running_board_overdue(const BoardDecoder& decoder,
+                                       std::int64_t last_delivered_mono, std::int64_t now,
+                                       std::int64_t period) noexcept {
+  const std::int64_t heard = std::max(last_delivered_mono, decoder.partial_mono_ns());
+  return heard == 0 || now - heard > period + period / 2;
+}
 
 }  // namespace exodaq::drivers

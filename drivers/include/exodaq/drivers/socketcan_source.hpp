@@ -107,6 +107,8 @@ class SocketCanSource final : public EncoderSource {
                               EncoderSample& out) noexcept;
   ReadStatus read_free_running(const CycleTime& time, std::int64_t period,
                                EncoderSample& out) noexcept;
+  // Free-running: the oldest complete (or due partial) cycle; false: none.
+  bool take_queued(std::int64_t period, EncoderSample& out) noexcept;
 
   SocketCanSourceConfig config_;
   std::unique_ptr<CanPort> port_;
