@@ -74,6 +74,11 @@ struct Fixture {
     return source->read(t, sample);
   }
   std::int64_t deadline(std::int64_t k) const { return kT0 + k * kPeriod; }
+  // One board cycle's two COUNTS frames, the second (completing it) 10 µs after `at`.
+  void cycle_frames(std::uint8_t seq, std::int64_t at) {
+    port->push(can::encode_counts(0, {1, 2, 3}, 0, seq), at);
+    port->push(can::encode_counts(1, {4, 5, 6}, 0, seq), at + 10'000);
+  }
   // A free-running board: its cycles 0 .. cycles - 1 put on the port in
   // advance, cycle k's frames from first + k * period on, 1 µs apart.
   void free_run(std::int64_t cycles, std::int64_t first) {
@@ -475,14 +480,10 @@ TEST(SocketCanSource, FreeRunningBacklogIsDeliveredOldestFirstWithNothingSuperse
 TEST(SocketCanSource, FreeRunningNothingDueUntilTheBoardIsOverdue) {
   Fixture f(false);
   f.source->start();
-  const auto counts = [&](std::uint8_t seq, std::int64_t at) {
-    f.port->push(can::encode_counts(0, {1, 2, 3}, 0, seq), at);
-    f.port->push(can::encode_counts(1, {4, 5, 6}, 0, seq), at + 10'000);
-  };
-  counts(0, f.deadline(0) + 390'000);  // complete at 400 µs: just within the wait
+  f.cycle_frames(0, f.deadline(0) + 390'000);  // complete at 400 µs: just within the wait
   ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
   EXPECT_EQ(f.sample.mono_ns, f.deadline(0) + 400'000);
-  counts(1, f.deadline(1) + 395'000);              // complete at 405 µs: just after it
+  f.cycle_frames(1, f.deadline(1) + 395'000);      // complete at 405 µs: just after it
   EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);  // 1.0 periods since the last: not overdue
   EXPECT_EQ(f.port->mono, f.deadline(1) + 400'000);
   ASSERT_EQ(f.cycle(2), ReadStatus::kSample);  // there at once
@@ -506,15 +507,11 @@ TEST(SocketCanSource, FreeRunningNothingDueUntilTheBoardIsOverdue) {
 TEST(SocketCanSource, FreeRunningACycleQueuedBeforeTheOverdueClockReadingIsTaken) {
   Fixture f(false);
   f.source->start();
-  const auto counts = [&](std::uint8_t seq, std::int64_t at) {
-    f.port->push(can::encode_counts(0, {1, 2, 3}, 0, seq), at);
-    f.port->push(can::encode_counts(1, {4, 5, 6}, 0, seq), at + 10'000);
-  };
-  counts(0, f.deadline(0) + 390'000);
+  f.cycle_frames(0, f.deadline(0) + 390'000);
   ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
   EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);  // silent, 1.0 periods: not overdue
   const std::int64_t poll_deadline = f.deadline(2) + 400'000;
-  counts(1, poll_deadline + 40'000);  // complete 50 µs after the poll deadline
+  f.cycle_frames(1, poll_deadline + 40'000);  // complete 50 µs after the poll deadline
   bool descheduled = false;
   f.port->on_now = [&](MemoryCanPort& p) {
     if (descheduled || p.mono < poll_deadline) return;
@@ -544,8 +541,7 @@ TEST(SocketCanSource, FreeRunningACycleQueuedBeforeTheOverdueClockReadingIsTaken
 TEST(SocketCanSource, FreeRunningAHalfCycleIsNotSilence) {
   Fixture f(false);
   f.source->start();
-  f.port->push(can::encode_counts(0, {1, 2, 3}, 0, 0), f.deadline(0) + 380'000);
-  f.port->push(can::encode_counts(1, {4, 5, 6}, 0, 0), f.deadline(0) + 390'000);
+  f.cycle_frames(0, f.deadline(0) + 380'000);
   ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
   const std::int64_t half_at = f.deadline(1) + 560'000;
   f.port->push(can::encode_counts(0, {7, 8, 9}, 0, 1), half_at);
