@@ -196,59 +196,59 @@ std::vector<Burst> stalled_then_burst() {
   }
   return b;
 }
+
+// A fresh count (no index, no board error) received at `received_ns`.
+JointEvent count_at(JointTracker& t, std::int64_t received_ns, int board_seq, std::int64_t count) {
+  return t.update(received_ns, board_seq, true, static_cast<std::uint16_t>(count & 0xFFFF), false,
+                  0, false);
+}
+
+JointTrackerConfig board_config(std::int64_t board_period_ns = kMs) {
+  auto c = base_config();
+  c.board_period_ns = board_period_ns;
+  return c;
+}
 }  // namespace
 
 TEST(JointTracker, ABoardsQueuedCyclesArrivingTogetherAreNoGlitch) {
-  auto c = base_config();
-  c.board_period_ns = kMs;
-  JointTracker t(c);
+  JointTracker t(board_config());
   for (const Burst& s : stalled_then_burst()) {
-    t.update(s.received_ns, s.board_seq, true, static_cast<std::uint16_t>(s.count), false, 0,
-             false);
+    count_at(t, s.received_ns, s.board_seq, s.count);
     ASSERT_EQ(t.reading().flags & jf::kGlitch, 0u) << "board cycle " << s.board_seq;
   }
   EXPECT_EQ(t.counters().glitches, 0);
   // Without the board's cycles (period unknown) the same stream is judged by
   // its receive stamps alone: the burst looks 20x too fast.
-  c.board_period_ns = 0;
-  JointTracker by_stamps(c);
-  for (const Burst& s : stalled_then_burst()) {
-    by_stamps.update(s.received_ns, s.board_seq, true, static_cast<std::uint16_t>(s.count), false,
-                     0, false);
-  }
+  JointTracker by_stamps(board_config(0));
+  for (const Burst& s : stalled_then_burst())
+    count_at(by_stamps, s.received_ns, s.board_seq, s.count);
   EXPECT_GT(by_stamps.counters().glitches, 0);
 }
 
 TEST(JointTracker, ABoardCycleGivesNoMoreTimeThanItsPeriod) {
-  auto c = base_config();
-  c.board_period_ns = kMs;
-  JointTracker t(c);
-  t.update(0, 10, true, 0, false, 0, false);
+  JointTracker t(board_config());
+  count_at(t, 0, 10, 0);
   // Next board cycle, stamped 1 ms later: 1000 counts is still a glitch.
-  EXPECT_EQ(t.update(kMs, 11, true, 1000, false, 0, false), JointEvent::kGlitch);
+  EXPECT_EQ(count_at(t, kMs, 11, 1000), JointEvent::kGlitch);
 }
 
 TEST(JointTracker, AnOlderOrRepeatedBoardCycleGivesOnlyTheReceiveInterval) {
-  auto c = base_config();
-  c.board_period_ns = kMs;
   for (const int seq : {10, 9, 138}) {  // same, older, 128 ahead (= 128 behind)
-    JointTracker t(c);
-    t.update(0, 10, true, 0, false, 0, false);
+    JointTracker t(board_config());
+    count_at(t, 0, 10, 0);
     // 0.96 rad/s over the 1 ms receive interval: 2 counts pass, 3 do not.
-    EXPECT_EQ(t.update(kMs, seq, true, 2, false, 0, false), JointEvent::kNone) << seq;
-    EXPECT_EQ(t.update(2 * kMs, seq, true, 5, false, 0, false), JointEvent::kGlitch) << seq;
+    EXPECT_EQ(count_at(t, kMs, seq, 2), JointEvent::kNone) << seq;
+    EXPECT_EQ(count_at(t, 2 * kMs, seq, 5), JointEvent::kGlitch) << seq;
   }
 }
 
 TEST(JointTracker, ALongBoardGapAllowsTheTravelOfItsCycles) {
-  auto c = base_config();
-  c.board_period_ns = kMs;
-  JointTracker t(c);
-  t.update(0, 0, true, 0, false, 0, false);
+  JointTracker t(board_config());
+  count_at(t, 0, 0, 0);
   // 100 board cycles later (frames lost), received 1 ms after the last one:
   // 100 ms at 0.96 rad/s is 152.8 counts.
-  EXPECT_EQ(t.update(kMs, 100, true, 150, false, 0, false), JointEvent::kNone);
-  EXPECT_EQ(t.update(2 * kMs, 200, true, 150 + 160, false, 0, false), JointEvent::kGlitch);
+  EXPECT_EQ(count_at(t, kMs, 100, 150), JointEvent::kNone);
+  EXPECT_EQ(count_at(t, 2 * kMs, 200, 150 + 160), JointEvent::kGlitch);
 }
 
 TEST(JointTracker, StaleAfterConfiguredTimeWithoutAFreshCount) {
