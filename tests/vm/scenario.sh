@@ -33,6 +33,22 @@ t() { cut -d' ' -f1 /proc/uptime; }
 step() { echo "VM-STEP: $* (t=$(t)s)"; }
 fail() { echo "VM-FAIL: $*"; RC=1; }
 lines() { (wc -l < "$1") 2>/dev/null || echo 0; }  # 0 until the file exists
+# Ends a run of stage 2 or 5 ($1: how its messages name it, e.g. " (free-running)"):
+# the board simulator first, then the checker (it judges the stream up to the
+# board's end) and the daemon, each by SIGTERM; sets CKRC and DRC.
+stop_run() {
+  kill -0 $DP 2>/dev/null || fail "exodaqd is not running at the end$1"
+  kill -TERM $BS; wait $BS
+  kill -TERM $CK; wait $CK
+  CKRC=$?
+  kill -TERM $DP; wait $DP
+  DRC=$?
+}
+# After the run's logs are printed: fails on the checker's or the daemon's exit code.
+judge_run() {
+  [ $CKRC -eq 0 ] || fail "exodaq-vcan-check$1 rc=$CKRC"
+  [ $DRC -eq 0 ] || fail "exodaqd$1 exit code $DRC after SIGTERM"
+}
 
 # Loop rate: exodaq.rate=N on the kernel command line (run-vm-tests sets 1000
 # under KVM; under TCG emulation the guest runs ~10-30x slower than the host and
@@ -112,19 +128,13 @@ step "ip link set vcan0 up"
 ip link set vcan0 up
 sleep 4
 step "stopping"
-kill -0 $DP 2>/dev/null || fail "exodaqd is not running at the end"
-kill -TERM $BS; wait $BS
-kill -TERM $CK; wait $CK
-CKRC=$?
-kill -TERM $DP; wait $DP
-DRC=$?
+stop_run ""
 kill -TERM $CD; wait $CD 2>/dev/null
 step "done"
 echo "--- board-sim ---"; cat $W/board.log
 echo "--- daemon (last 40 lines) ---"; tail -n 40 $W/daemon.log
 echo "--- checker ---"; cat $W/check.log
-[ $CKRC -eq 0 ] || fail "exodaq-vcan-check rc=$CKRC"
-[ $DRC -eq 0 ] || fail "exodaqd exit code $DRC after SIGTERM"
+judge_run ""
 
 # --- 3. the candump log and the live cycles to the host (second serial port) --
 LOG=$(ls $W/candump-*.log 2>/dev/null | head -1)
@@ -230,16 +240,10 @@ while [ "$(lines $W/truth-free.txt)" -lt $((17 * RATE)) ]; do
   kill -0 $DP 2>/dev/null || { fail "exodaqd died (free-running)"; break; }
   sleep 0.5
 done
-kill -0 $DP 2>/dev/null || fail "exodaqd is not running at the end (free-running)"
-kill -TERM $BS; wait $BS
-kill -TERM $CK; wait $CK
-CKRC=$?
-kill -TERM $DP; wait $DP
-DRC=$?
+stop_run " (free-running)"
 step "free-running done"
 echo "--- board-sim (free-running) ---"; cat $W/board-free.log
 echo "--- daemon (free-running, last 20 lines) ---"; tail -n 20 $W/daemon-free.log
 echo "--- checker (free-running) ---"; cat $W/check-free.log
-[ $CKRC -eq 0 ] || fail "exodaq-vcan-check (free-running) rc=$CKRC"
-[ $DRC -eq 0 ] || fail "exodaqd (free-running) exit code $DRC after SIGTERM"
+judge_run " (free-running)"
 exit $RC
