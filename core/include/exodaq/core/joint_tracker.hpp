@@ -50,7 +50,7 @@ struct JointTrackerConfig {
   double limit_margin_rad = 0.0349;  // out-of-range margin beyond the limits
   double max_speed_rad_s = 5.0;      // glitch bound (already including its margin)
   // The board's sample period (0: unknown). The glitch bound's interval is the
-  // longer of the receive instants' and the board cycles' (docs/robustness.md).
+  // longer of the receive instants' and the board cycles' (docs/operations.md, GLITCH).
   std::int64_t board_period_ns = 0;
   std::int64_t index_tolerance_counts = 2;
   std::int64_t stale_ns = 20'000'000;
