@@ -6,7 +6,8 @@
 #   /usr/lib/python3/dist-packages/exodaq/, exodaq_lcm.py         (tools/python: the Python package)
 #   /etc/exodaq/exodaqd.yaml, sim.yaml, vcan.yaml, models/, calibration/, tasks/   (conffiles)
 #   /lib/systemd/system/exodaqd.service, exodaqd@.service (the template: one
-#     instance per rig, exodaqd@<rig>.service reading /etc/exodaq/<rig>.yaml)
+#     instance per rig, exodaqd@<rig>.service reading /etc/exodaq/<rig>.yaml),
+#     exodaq.slice (their slice: memory protection)
 #   /usr/lib/sysusers.d/exodaq.conf
 #   /usr/share/doc/exodaq/  operations.md, messages.md, ..., examples/80-can0.{network,link}
 # Any other prefix P (a staging directory, /usr/local) keeps everything under P:
@@ -32,7 +33,8 @@ list(SORT EXODAQ_INSTALL_MODELS)
 list(SORT EXODAQ_INSTALL_CALIBRATIONS)
 list(SORT EXODAQ_INSTALL_TASKS)
 set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS
-  ${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaqd.service ${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaq.sysusers)
+  ${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaqd.service ${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaq.sysusers
+  ${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaq.slice)
 
 # The unit, the sysusers file and /etc/exodaq: places depend on the prefix at install time.
 install(CODE "
@@ -43,6 +45,7 @@ set(_exodaq_calibrations \"${EXODAQ_INSTALL_CALIBRATIONS}\")
 set(_exodaq_tasks \"${EXODAQ_INSTALL_TASKS}\")
 set(_exodaq_unit_in \"${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaqd.service\")
 set(_exodaq_sysusers \"${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaq.sysusers\")
+set(_exodaq_slice \"${EXODAQ_SOURCE_SYSTEMD_DIR}/exodaq.slice\")
 set(_exodaq_gen \"${CMAKE_BINARY_DIR}/install-gen\")
 ")
 install(CODE [==[
@@ -81,6 +84,8 @@ foreach(_exodaq_pair "exodaqd.service;_exodaq_unit" "exodaqd@.service;_exodaq_te
   file(INSTALL DESTINATION "${_exodaq_unitdir}" TYPE FILE PERMISSIONS OWNER_READ OWNER_WRITE
     GROUP_READ WORLD_READ FILES "${_exodaq_gen}/${_exodaq_key}/${_exodaq_name}")
 endforeach()
+file(INSTALL DESTINATION "${_exodaq_unitdir}" TYPE FILE PERMISSIONS OWNER_READ OWNER_WRITE
+  GROUP_READ WORLD_READ FILES "${_exodaq_slice}")
 file(INSTALL DESTINATION "${_exodaq_sysusersdir}" TYPE FILE RENAME exodaq.conf
   PERMISSIONS OWNER_READ OWNER_WRITE GROUP_READ WORLD_READ FILES "${_exodaq_sysusers}")
 # Configuration: readable by the exodaq user, writable by root only.

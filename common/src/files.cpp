@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <pwd.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -9,6 +10,8 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <random>
+#include <utility>
 
 namespace exodaq::files {
 
@@ -16,72 +19,211 @@ namespace {
 
 constexpr std::size_t kBufferBytes = 64 * 1024;
 
-std::string dir_of(const std::string& path) {
-  const auto slash = path.rfind('/');
-  if (slash == std::string::npos) return ".";
-  if (slash == 0) return "/";
-  return path.substr(0, slash);
-}
-
-std::string base_of(const std::string& path) {
-  const auto slash = path.rfind('/');
-  return slash == std::string::npos ? path : path.substr(slash + 1);
-}
-
-// The path after following every symlink (a dangling link: the path it names).
-std::string follow_links(const std::string& path) {
-  std::string p = path;
-  for (int depth = 0; depth < 40; ++depth) {
-    struct stat st {};
-    if (::lstat(p.c_str(), &st) != 0) {
-      if (errno == ENOENT) return p;
-      throw FileError(path, errno_text(errno));
+// A descriptor closed when it goes out of scope.
+class Fd {
+ public:
+  explicit Fd(int fd = -1) noexcept : fd_(fd) {}
+  ~Fd() { reset(); }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  Fd(Fd&& o) noexcept : fd_(o.release()) {}
+  Fd& operator=(Fd&& o) noexcept {
+    if (this != &o) {
+      reset();
+      fd_ = o.release();
     }
-    if (!S_ISLNK(st.st_mode)) return p;
-    std::string link(static_cast<std::size_t>(st.st_size > 0 ? st.st_size : 4096) + 1, '\0');
-    const ssize_t n = ::readlink(p.c_str(), link.data(), link.size());
-    if (n < 0) throw FileError(path, "cannot read the symbolic link: " + errno_text(errno));
-    link.resize(static_cast<std::size_t>(n));
-    p = link.empty() || link[0] == '/' ? link : dir_of(p) + "/" + link;
+    return *this;
   }
-  throw FileError(path, "too many levels of symbolic links");
+  int get() const noexcept { return fd_; }
+  int release() noexcept { return std::exchange(fd_, -1); }
+  void reset() noexcept {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+
+ private:
+  int fd_;
+};
+
+std::string owner_text(uid_t uid) {
+  std::string text = "uid " + std::to_string(uid);
+  const long size = ::sysconf(_SC_GETPW_R_SIZE_MAX);
+  std::vector<char> buf(static_cast<std::size_t>(size > 0 ? size : 16384));
+  struct passwd pw {};
+  struct passwd* found = nullptr;
+  if (::getpwuid_r(uid, &pw, buf.data(), buf.size(), &found) == 0 && found != nullptr) {
+    text += " ('" + std::string(found->pw_name) + "')";
+  }
+  return text;
+}
+
+// Whether a symbolic link `link` in the directory `dir` may be followed by
+// this process (docs/robustness.md "Files"): the caller's own link always; a
+// link of root's only in a directory of the caller's or root's, and, in a
+// sticky world-writable directory, only in root's (the kernel's
+// fs.protected_symlinks rule); anyone else's link never.
+bool may_follow(const struct stat& dir, const struct stat& link) {
+  const uid_t me = ::geteuid();
+  if (link.st_uid == me) return true;
+  if (link.st_uid != 0) return false;
+  if (dir.st_uid != me && dir.st_uid != 0) return false;
+  const bool sticky_world_writable = (dir.st_mode & (S_ISVTX | S_IWOTH)) == (S_ISVTX | S_IWOTH);
+  return !sticky_world_writable || dir.st_uid == 0;
+}
+
+// `name` in the folder `dir` as text ("." is left out).
+std::string child(const std::string& dir, const std::string& name) {
+  if (dir == ".") return name;
+  return dir == "/" ? "/" + name : dir + "/" + name;
+}
+
+// Where an output goes: its directory, held open (every later step is
+// relative to it, so nothing swapped into the path afterwards is followed),
+// and its name there.
+struct Place {
+  Fd dir;
+  std::string dir_text;  // for messages
+  std::string name;
+  std::string target;  // the path as given, or as the links made it
+};
+
+// Walks `path` one component at a time, never letting the kernel follow a
+// link: each link met (a folder on the way or the last name) is checked by
+// may_follow() and then followed here. The last name need not exist.
+Place resolve_output(const std::string& path) {
+  if (path.size() > 1 && path.back() == '/')
+    throw FileError(path, "ends with '/': name a file to write");
+  // Components still to walk, the next one last.
+  std::vector<std::string> todo;
+  const auto push_path = [&todo](const std::string& p) {
+    std::vector<std::string> parts;
+    for (std::size_t at = 0; at <= p.size();) {
+      const std::size_t slash = std::min(p.find('/', at), p.size());
+      if (slash > at) parts.push_back(p.substr(at, slash - at));
+      at = slash + 1;
+    }
+    if (parts.empty()) parts.push_back(".");  // "/" or a link to "/"
+    todo.insert(todo.end(), parts.rbegin(), parts.rend());
+  };
+  const auto open_dir = [&path](int at, const char* name, const std::string& shown) {
+    const int fd = ::openat(at, name, O_PATH | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+    if (fd < 0) throw FileError(path, "cannot write into '" + shown + "': " + errno_text(errno));
+    return Fd(fd);
+  };
+  Place place;
+  const bool absolute = path.front() == '/';
+  place.dir_text = absolute ? "/" : ".";
+  place.dir = open_dir(AT_FDCWD, absolute ? "/" : ".", place.dir_text);
+  push_path(path);
+  bool followed = false;
+  for (int links = 0; !todo.empty();) {
+    const std::string name = todo.back();
+    todo.pop_back();
+    const bool last = todo.empty();
+    if (name == "." && !last) continue;
+    const std::string shown = child(place.dir_text, name);
+    struct stat st {};
+    if (::fstatat(place.dir.get(), name.c_str(), &st, AT_SYMLINK_NOFOLLOW) != 0) {
+      const int err = errno;
+      if (last && err == ENOENT) {
+        place.name = name;
+        break;
+      }
+      if (last) throw FileError(path, errno_text(err));
+      // The folder the output would go into, as named.
+      std::string folder = shown;
+      for (auto it = todo.rbegin(); it + 1 != todo.rend(); ++it) folder += "/" + *it;
+      throw FileError(path, "cannot write into '" + folder + "': " + errno_text(err));
+    }
+    if (S_ISLNK(st.st_mode)) {
+      struct stat dir_st {};
+      if (::fstat(place.dir.get(), &dir_st) != 0) throw FileError(path, errno_text(errno));
+      if (!may_follow(dir_st, st)) {
+        const bool sticky = (dir_st.st_mode & S_ISVTX) != 0;
+        throw FileError(path, "'" + shown + "' is a symbolic link of " + owner_text(st.st_uid) +
+                                  " in " + (sticky ? "a sticky folder" : "a folder") + " of " +
+                                  owner_text(dir_st.st_uid) +
+                                  ": not followed (another user could have planted it; name "
+                                  "the file it points to, or write elsewhere)");
+      }
+      if (++links > 40) throw FileError(path, "too many levels of symbolic links");
+      std::string link(static_cast<std::size_t>(st.st_size > 0 ? st.st_size : 4096) + 1, '\0');
+      const ssize_t n = ::readlinkat(place.dir.get(), name.c_str(), link.data(), link.size());
+      if (n < 0) throw FileError(path, "cannot read the symbolic link: " + errno_text(errno));
+      link.resize(static_cast<std::size_t>(n));
+      if (link.empty()) throw FileError(path, "'" + shown + "' is an empty symbolic link");
+      followed = true;
+      if (link.front() == '/') {
+        place.dir_text = "/";
+        place.dir = open_dir(AT_FDCWD, "/", "/");
+      }
+      push_path(link);
+      continue;
+    }
+    if (last) {
+      place.name = name;
+      break;
+    }
+    if (!S_ISDIR(st.st_mode)) throw FileError(path, "'" + shown + "' is not a directory");
+    place.dir = open_dir(place.dir.get(), name.c_str(), shown);
+    place.dir_text = shown;
+  }
+  place.target = followed ? child(place.dir_text, place.name) : path;
+  return place;
 }
 
 // The checks of an output's target; true when it exists (then `st` holds it).
-bool check_target(const std::string& path, const std::string& target, const OutputOptions& o,
+bool check_target(const std::string& path, const Place& place, const OutputOptions& o,
                   struct stat& st) {
+  const std::string& target = place.target;
   const std::string shown = target == path ? "" : " (the target of the link, '" + target + "')";
-  bool exists = false;
-  if (::stat(target.c_str(), &st) == 0) {
-    exists = true;
-    if (!S_ISREG(st.st_mode)) {
-      throw FileError(path, "is " + file_kind(st.st_mode) + shown +
-                                ", not a regular file: not replaced (name a file to write)");
-    }
-    // A file the user may not write is not replaced behind its back by the
-    // rename (the folder being writable is not the file being writable).
-    if (::access(target.c_str(), W_OK) != 0) {
-      throw FileError(path, "cannot write: " + errno_text(errno));
-    }
-    for (const std::string& in : o.inputs) {
-      struct stat ist {};
-      if (in != "-" && ::stat(in.c_str(), &ist) == 0 && ist.st_dev == st.st_dev &&
-          ist.st_ino == st.st_ino) {
-        throw FileError(path, "is also an input ('" + in +
-                                  "'): writing it would destroy what is being read; name "
-                                  "another output");
-      }
-    }
-  } else if (errno != ENOENT) {
-    throw FileError(path, errno_text(errno));
+  if (::fstatat(place.dir.get(), place.name.c_str(), &st, AT_SYMLINK_NOFOLLOW) != 0) {
+    if (errno != ENOENT) throw FileError(path, errno_text(errno));
+    return false;
   }
-  struct stat dst {};
-  const std::string dir = dir_of(target);
-  if (::stat(dir.c_str(), &dst) != 0) {
-    throw FileError(path, "cannot write into '" + dir + "': " + errno_text(errno));
+  if (!S_ISREG(st.st_mode)) {
+    throw FileError(path, "is " + file_kind(st.st_mode) + shown +
+                              ", not a regular file: not replaced (name a file to write)");
   }
-  if (!S_ISDIR(dst.st_mode)) throw FileError(path, "'" + dir + "' is not a directory");
-  return exists;
+  // A file the user may not write is not replaced behind its back by the
+  // rename (the folder being writable is not the file being writable).
+  if (::faccessat(place.dir.get(), place.name.c_str(), W_OK, 0) != 0) {
+    throw FileError(path, "cannot write: " + errno_text(errno));
+  }
+  for (const std::string& in : o.inputs) {
+    struct stat ist {};
+    if (in != "-" && ::stat(in.c_str(), &ist) == 0 && ist.st_dev == st.st_dev &&
+        ist.st_ino == st.st_ino) {
+      throw FileError(path, "is also an input ('" + in +
+                                "'): writing it would destroy what is being read; name "
+                                "another output");
+    }
+  }
+  return true;
+}
+
+// A new, empty file `.<name>.tmp-XXXXXX` in the place's folder (mode 0600,
+// as mkstemp). Returns its descriptor and sets `temp_name`.
+int create_temp(const std::string& path, const Place& place, std::string& temp_name) {
+  static constexpr char kDigits[] =
+      "0123456789abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ";
+  std::random_device rng;
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    std::string name = "." + place.name + ".tmp-";
+    for (int i = 0; i < 6; ++i) name += kDigits[rng() % (sizeof kDigits - 1)];
+    const int fd = ::openat(place.dir.get(), name.c_str(),
+                            O_RDWR | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+    if (fd >= 0) {
+      temp_name = name;
+      return fd;
+    }
+    if (errno != EEXIST) {
+      throw FileError(
+          path, "cannot create a temporary file in '" + place.dir_text + "': " + errno_text(errno));
+    }
+  }
+  throw FileError(
+      path, "cannot create a temporary file in '" + place.dir_text + "': " + errno_text(EEXIST));
 }
 
 mode_t current_umask() {
@@ -252,7 +394,7 @@ void check_output(const std::string& path, const OutputOptions& options) {
   }
   if (path.empty()) throw FileError("''", "no output file named");
   struct stat st {};
-  check_target(path, follow_links(path), options, st);
+  check_target(path, resolve_output(path), options, st);
 }
 
 OutputFile::OutputFile(const std::string& path, const OutputOptions& options) : path_(path) {
@@ -264,16 +406,14 @@ OutputFile::OutputFile(const std::string& path, const OutputOptions& options) : 
     return;
   }
   if (path.empty()) throw FileError("''", "no output file named");
-  target_ = follow_links(path);
+  Place place = resolve_output(path);
+  target_ = place.target;
   struct stat st {};
-  const bool exists = check_target(path, target_, options, st);
-  std::string tmpl = dir_of(target_) + "/." + base_of(target_) + ".tmp-XXXXXX";
-  fd_ = ::mkostemp(tmpl.data(), O_CLOEXEC);
-  if (fd_ < 0) {
-    throw FileError(
-        path, "cannot create a temporary file in '" + dir_of(target_) + "': " + errno_text(errno));
-  }
-  temp_ = tmpl;
+  const bool exists = check_target(path, place, options, st);
+  fd_ = create_temp(path, place, temp_name_);
+  temp_ = child(place.dir_text, temp_name_);
+  name_ = place.name;
+  dir_fd_ = place.dir.release();
   // The new file gets the old one's mode (and owner, as root); a new target
   // the usual 0666 less the umask.
   ::fchmod(fd_, exists ? (st.st_mode & 07777) : (0666 & ~current_umask()));
@@ -283,6 +423,7 @@ OutputFile::OutputFile(const std::string& path, const OutputOptions& options) : 
 
 OutputFile::~OutputFile() {
   if (!done_) discard();
+  if (dir_fd_ >= 0) ::close(dir_fd_);
 }
 
 void OutputFile::discard() noexcept {
@@ -292,7 +433,8 @@ void OutputFile::discard() noexcept {
   }
   if (fd_ >= 0) ::close(fd_);
   fd_ = -1;
-  if (!temp_.empty()) ::unlink(temp_.c_str());
+  if (!temp_name_.empty()) ::unlinkat(dir_fd_, temp_name_.c_str(), 0);
+  temp_name_.clear();
   temp_.clear();
   done_ = true;
 }
@@ -349,13 +491,14 @@ void OutputFile::commit() {
   const int fd = fd_;
   fd_ = -1;
   if (::close(fd) != 0) fail("cannot write", errno);
-  if (::rename(temp_.c_str(), target_.c_str()) != 0) {
+  if (::renameat(dir_fd_, temp_name_.c_str(), dir_fd_, name_.c_str()) != 0) {
     fail("cannot rename '" + temp_ + "' to '" + target_ + "'", errno);
   }
+  temp_name_.clear();
   temp_.clear();
   done_ = true;
   // The rename is durable once the directory is on disk too.
-  const int dir = ::open(dir_of(target_).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  const int dir = ::openat(dir_fd_, ".", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dir >= 0) {
     ::fsync(dir);
     ::close(dir);

@@ -7,6 +7,8 @@
 #include <set>
 #include <sstream>
 
+#include "exodaq/config/yaml_reader.hpp"
+
 namespace exodaq::config {
 
 namespace {

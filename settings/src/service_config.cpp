@@ -1,38 +1,98 @@
 #include "exodaq/config/service_config.hpp"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <set>
 #include <sstream>
+#include <type_traits>
 
 #include "exodaq/common/files.hpp"
 #include "exodaq/config/content_hash.hpp"
 #include "exodaq/config/setting_classes.hpp"
 #include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/drivers/source_factory.hpp"
+#include "setting_visit.hpp"
 
 namespace exodaq::config {
 
 namespace {
 
+using detail::Declaration;
+
+bool obeys(const Rule& r, double v) {
+  if (!r.choices.empty()) {
+    const auto choices = detail::choices_of(r);
+    return std::find(choices.begin(), choices.end(), setting_number(v)) != choices.end();
+  }
+  const bool above_lo = r.lo_open ? v > r.lo : v >= r.lo;
+  const bool below_hi = r.hi_open ? v < r.hi : v <= r.hi;
+  return above_lo && below_hi;
+}
+
+// Reads the declared settings of one mapping into their fields, each checked
+// against its rule: "<prefix>.<key> <rule text>" at the key's line.
+class SettingReader {
+ public:
+  SettingReader(MapReader& m, std::string prefix) : m_(m), prefix_(std::move(prefix)) {}
+
+  void operator()(const Declaration& d, bool& v) {
+    v = d.rule.required ? m_.boolean(key(d)) : m_.boolean_or(key(d), v);
+  }
+  void operator()(const Declaration& d, double& v) {
+    v = d.rule.required ? m_.number(key(d)) : m_.number_or(key(d), v);
+    check(d, v);
+  }
+  template <typename T, typename = std::enable_if_t<std::is_integral_v<T>>>
+  void operator()(const Declaration& d, T& v) {
+    if (d.unit.scale != 1.0) {  // written in a larger unit than kept
+      const double written = d.rule.required
+                                 ? m_.number(key(d))
+                                 : m_.number_or(key(d), static_cast<double>(v) / d.unit.scale);
+      check(d, written);
+      v = static_cast<T>(written * d.unit.scale);
+      return;
+    }
+    const std::int64_t read = d.rule.required ? m_.integer(key(d)) : m_.integer_or(key(d), v);
+    check(d, static_cast<double>(read));
+    v = static_cast<T>(read);
+  }
+  void operator()(const Declaration& d, std::string& v) {
+    if (!d.rule.choices.empty()) {
+      const auto choices = detail::choices_of(d.rule);
+      v = d.rule.required ? m_.choice(key(d), choices) : m_.choice_or(key(d), choices, v);
+      return;
+    }
+    v = d.rule.required ? m_.string(key(d)) : m_.string_or(key(d), v);
+    // A text's bounds are its length's.
+    if (!obeys(d.rule, static_cast<double>(v.size()))) fail(d);
+  }
+  void operator()(const Declaration& d, RequireSync& v) {
+    const auto choices = detail::choices_of(d.rule);
+    const std::string name = m_.choice_or(key(d), choices, choices[static_cast<std::size_t>(v)]);
+    v = static_cast<RequireSync>(std::find(choices.begin(), choices.end(), name) - choices.begin());
+  }
+
+ private:
+  static std::string key(const Declaration& d) { return std::string(d.key); }
+  void check(const Declaration& d, double v) const {
+    if (!obeys(d.rule, v)) fail(d);
+  }
+  [[noreturn]] void fail(const Declaration& d) const {
+    const std::string name = prefix_.empty() ? key(d) : prefix_ + "." + key(d);
+    m_.fail_key(key(d), name + " " + std::string(d.rule.text));
+  }
+  MapReader& m_;
+  std::string prefix_;
+};
+
 void parse_loop(MapReader m, LoopSettings& loop) {
-  loop.rate_hz = m.number_or("rate_hz", loop.rate_hz);
-  if (loop.rate_hz < 10.0 || loop.rate_hz > 10'000.0) {
-    m.fail_key("rate_hz", "loop.rate_hz must be between 10 and 10000 Hz");
-  }
-  loop.cpu = static_cast<int>(m.integer_or("cpu", loop.cpu));
-  if (loop.cpu < -1 || loop.cpu > 1023)
-    m.fail_key("cpu", "loop.cpu must be -1 (any) or a CPU number");
-  loop.priority = static_cast<int>(m.integer_or("priority", loop.priority));
-  if (loop.priority < 0 || loop.priority > 99) {
-    m.fail_key("priority", "loop.priority must be 0 (SCHED_OTHER) or a SCHED_FIFO priority 1..99");
-  }
-  loop.lock_memory = m.boolean_or("lock_memory", loop.lock_memory);
-  loop.fault_after_ms = m.integer_or("fault_after_ms", loop.fault_after_ms);
-  if (loop.fault_after_ms < 1) m.fail_key("fault_after_ms", "loop.fault_after_ms must be positive");
-  loop.status_rate_hz = m.number_or("status_rate_hz", loop.status_rate_hz);
-  if (loop.status_rate_hz <= 0.0 || loop.status_rate_hz > loop.rate_hz) {
+  detail::visit_loop(loop, SettingReader(m, "loop"));
+  if (loop.status_rate_hz > loop.rate_hz) {
     m.fail_key("status_rate_hz", "loop.status_rate_hz must be positive and at most loop.rate_hz");
   }
   m.finish();
@@ -54,32 +114,7 @@ void parse_source(MapReader m, drivers::SourceOptions& src) {
 }
 
 void parse_encoders(MapReader m, EncoderSettings& enc) {
-  enc.cycles_per_rev = static_cast<int>(m.integer_or("cycles_per_rev", enc.cycles_per_rev));
-  if (enc.cycles_per_rev < 1 || enc.cycles_per_rev > 1'000'000) {
-    m.fail_key("cycles_per_rev", "encoders.cycles_per_rev must be between 1 and 1000000");
-  }
-  enc.decoding = static_cast<int>(m.integer_or("decoding", enc.decoding));
-  if (enc.decoding != 1 && enc.decoding != 2 && enc.decoding != 4) {
-    m.fail_key("decoding", "encoders.decoding must be 1, 2 or 4 (quadrature decoding factor)");
-  }
-  enc.stale_ms = m.number_or("stale_ms", enc.stale_ms);
-  if (enc.stale_ms <= 0.0) m.fail_key("stale_ms", "encoders.stale_ms must be positive");
-  enc.index_tolerance_counts = m.integer_or("index_tolerance_counts", enc.index_tolerance_counts);
-  if (enc.index_tolerance_counts < 0) {
-    m.fail_key("index_tolerance_counts", "encoders.index_tolerance_counts must be >= 0");
-  }
-  enc.limit_margin_deg = m.number_or("limit_margin_deg", enc.limit_margin_deg);
-  if (enc.limit_margin_deg < 0.0)
-    m.fail_key("limit_margin_deg", "encoders.limit_margin_deg must be >= 0");
-  enc.speed_margin = m.number_or("speed_margin", enc.speed_margin);
-  if (enc.speed_margin < 1.0) m.fail_key("speed_margin", "encoders.speed_margin must be >= 1");
-  enc.velocity_window = static_cast<int>(m.integer_or("velocity_window", enc.velocity_window));
-  if (enc.velocity_window < 2 || enc.velocity_window > kMaxVelocityWindow) {
-    m.fail_key("velocity_window", "encoders.velocity_window must be between 2 and " +
-                                      std::to_string(kMaxVelocityWindow));
-  }
-  enc.fault_hold_ms = m.number_or("fault_hold_ms", enc.fault_hold_ms);
-  if (enc.fault_hold_ms < 0.0) m.fail_key("fault_hold_ms", "encoders.fault_hold_ms must be >= 0");
+  detail::visit_encoders(enc, SettingReader(m, "encoders"));
 
   const YAML::Node joints = m.child("joints");
   if (!joints.IsSequence()) m.fail(joints, "encoders.joints must be a list of 6 joints");
@@ -90,69 +125,69 @@ void parse_encoders(MapReader m, EncoderSettings& enc) {
   for (std::size_t i = 0; i < joints.size(); ++i) {
     MapReader j(m.file(), joints[i], "encoders.joints[" + std::to_string(i) + "]");
     auto& out = enc.joints[i];
-    out.channel = static_cast<int>(j.integer("channel"));
-    if (out.channel < 0 || out.channel > 5) j.fail_key("channel", "channel must be 0..5");
+    // Errors name the key alone: the reader's context names the joint.
+    detail::visit_joint(out, SettingReader(j, ""));
     if (!channels.insert(out.channel).second) {
       j.fail_key("channel", "channel " + std::to_string(out.channel) + " is used by two joints");
     }
-    out.direction = static_cast<int>(j.integer_or("direction", 1));
-    if (out.direction != 1 && out.direction != -1)
-      j.fail_key("direction", "direction must be 1 or -1");
-    out.gear_ratio = j.number_or("gear_ratio", 1.0);
-    if (out.gear_ratio <= 0.0 || out.gear_ratio > 100.0) {
-      j.fail_key("gear_ratio",
-                 "gear_ratio must be in (0, 100] encoder revolutions per joint revolution");
-    }
-    out.max_speed_rad_s = j.number("max_speed_rad_s");
-    if (out.max_speed_rad_s <= 0.0)
-      j.fail_key("max_speed_rad_s", "max_speed_rad_s must be positive");
     j.finish();
   }
   m.finish();
 }
 
+// What is wrong with the group and port of a udpm:// URL ("" when nothing):
+// LCM joins the group, so a unicast address would fail only at start.
+std::string udpm_address_problem(const std::string& url) {
+  const std::string rest = url.substr(7);
+  const std::string network = rest.substr(0, rest.find('?'));
+  if (network.empty()) return {};  // LCM's default group and port
+  const std::size_t colon = network.find(':');
+  const std::string group = network.substr(0, colon);
+  in_addr address{};
+  if (inet_pton(AF_INET, group.c_str(), &address) != 1) {
+    return "lcm.url group '" + group + "' is not an IPv4 address (udpm://239.255.76.67:7667)";
+  }
+  if (!IN_MULTICAST(ntohl(address.s_addr))) {
+    return "lcm.url group " + group +
+           " is a unicast address: udpm:// needs a multicast group, 224.0.0.0 to "
+           "239.255.255.255 (239.255.76.67 is LCM's default)";
+  }
+  const std::string port = colon == std::string::npos ? "" : network.substr(colon + 1);
+  char* end = nullptr;
+  const long value = std::strtol(port.c_str(), &end, 10);
+  if (port.empty() || *end != '\0' || value < 1 || value > 65535) {
+    return "lcm.url needs a port 1..65535 after the group (udpm://" + group + ":7667)";
+  }
+  return {};
+}
+
 void parse_lcm(MapReader m, LcmSettings& lcm) {
-  lcm.url = m.string_or("url", lcm.url);
+  detail::visit_lcm(lcm, SettingReader(m, "lcm"));
   if (lcm.url.rfind("udpm://", 0) != 0 && lcm.url.rfind("file://", 0) != 0 &&
       lcm.url.rfind("memq://", 0) != 0) {
     m.fail_key("url", "lcm.url must be an LCM URL (udpm://group:port?ttl=N)");
   }
-  lcm.prefix = m.string_or("prefix", lcm.prefix);
+  if (lcm.url.rfind("udpm://", 0) == 0) {
+    if (const std::string problem = udpm_address_problem(lcm.url); !problem.empty()) {
+      m.fail_key("url", problem);
+    }
+  }
   for (char c : lcm.prefix) {
     if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.' ||
           c == '/')) {
       m.fail_key("prefix", "lcm.prefix may hold letters, digits and _ - . / only");
     }
   }
-  lcm.publish_raw = m.boolean_or("publish_raw", lcm.publish_raw);
   m.finish();
 }
 
 void parse_clock(MapReader m, ClockPolicy& clock) {
-  const std::string req = m.choice_or("require_sync", {"ignore", "mark", "hold"}, "mark");
-  clock.require_sync = req == "ignore" ? RequireSync::kIgnore
-                       : req == "hold" ? RequireSync::kHold
-                                       : RequireSync::kMark;
-  clock.max_est_error_us = m.number_or("max_est_error_us", clock.max_est_error_us);
-  clock.max_max_error_us = m.number_or("max_max_error_us", clock.max_max_error_us);
-  const double step_ms =
-      m.number_or("step_threshold_ms", static_cast<double>(clock.step_threshold_ns) / 1e6);
-  if (step_ms <= 0.0) m.fail_key("step_threshold_ms", "clock.step_threshold_ms must be positive");
-  clock.step_threshold_ns = static_cast<std::int64_t>(step_ms * 1e6);
-  clock.slew_ppm = m.number_or("slew_ppm", clock.slew_ppm);
-  if (clock.slew_ppm <= 0.0 || clock.slew_ppm > 1e5)
-    m.fail_key("slew_ppm", "clock.slew_ppm must be in (0, 100000]");
-  clock.step_slew_ppm = m.number_or("step_slew_ppm", clock.step_slew_ppm);
-  if (clock.step_slew_ppm <= 0.0 || clock.step_slew_ppm > 5e5) {
-    m.fail_key("step_slew_ppm", "clock.step_slew_ppm must be in (0, 500000]");
-  }
+  detail::visit_clock(clock, SettingReader(m, "clock"));
   m.finish();
 }
 
 void parse_logging(MapReader m, LoggingSettings& log) {
-  log.level = m.choice_or("level", {"trace", "debug", "info", "warn", "error", "critical", "off"},
-                          log.level);
-  log.sink = m.choice_or("sink", {"auto", "stderr", "journal"}, log.sink);
+  detail::visit_logging(log, SettingReader(m, "logging"));
   m.finish();
 }
 
@@ -176,22 +211,43 @@ T load_referenced(const std::string& config_file, const YAML::Node& at, const st
   return load(text, path);
 }
 
+// The fastest a joint plausibly moves: across its whole mechanical range (the
+// model's limits) in kFullRangeMinS. Faster than any primate arm movement; a
+// bound beyond it lets count glitches pass as motion (docs/operations.md,
+// "Plausibility checks").
+constexpr double kFullRangeMinS = 0.05;
+
+void check_speed_bounds(const ServiceConfig& c, const YAML::Node& root, const std::string& file) {
+  const auto& joints = c.model.chain.joints();
+  for (std::size_t i = 0; i < joints.size() && i < c.encoders.joints.size(); ++i) {
+    const double range = joints[i].limits.upper - joints[i].limits.lower;
+    const double speed = c.encoders.joints[i].max_speed_rad_s;
+    if (!std::isfinite(range) || range <= 0.0 || speed * kFullRangeMinS <= range) continue;
+    const YAML::Node at = root["encoders"]["joints"][i]["max_speed_rad_s"];
+    throw ConfigError(
+        file, line_of(at),
+        "encoders.joints[" + std::to_string(i) + "].max_speed_rad_s " + setting_number(speed) +
+            " is beyond joint '" + joints[i].name + "': it would cross its whole range (" +
+            setting_number(std::round(range / kDegToRad * 10.0) / 10.0) + " deg, model '" +
+            c.model_path + "') in " + setting_number(std::round(range / speed * 1e4) / 10.0) +
+            " ms; at most " + setting_number(std::floor(range / kFullRangeMinS * 10.0) / 10.0) +
+            " rad/s (the whole range in " + setting_number(kFullRangeMinS * 1e3) +
+            " ms): a faster bound lets count glitches pass as motion");
+  }
+}
+
 ServiceConfig parse(const YAML::Node& root, const std::string& file) {
   ServiceConfig c;
   c.file = file;
   MapReader top(file, root, "config");
-  c.rig = top.string("rig");
-  if (c.rig.empty() || c.rig.size() > 63) top.fail_key("rig", "rig must be 1 to 63 characters");
+  detail::visit_top(c, SettingReader(top, ""));
   if (auto m = top.optional_map("loop")) parse_loop(*m, c.loop);
   parse_source(top.map("source"), c.source);
   parse_encoders(top.map("encoders"), c.encoders);
   c.model_path = top.path("model");
   c.calibration_path = top.path("calibration");
   if (auto m = top.optional_map("kinematics")) {
-    c.singularity_threshold = m->number_or("singularity_threshold", c.singularity_threshold);
-    if (c.singularity_threshold < 0.0 || c.singularity_threshold >= 1.0) {
-      m->fail_key("singularity_threshold", "kinematics.singularity_threshold must be in [0, 1)");
-    }
+    detail::visit_kinematics(c, SettingReader(*m, "kinematics"));
     m->finish();
   }
   if (auto m = top.optional_map("lcm")) parse_lcm(*m, c.lcm);
@@ -217,6 +273,7 @@ ServiceConfig parse(const YAML::Node& root, const std::string& file) {
   c.calibration = load_referenced(file, root["calibration"], "calibration", c.calibration_path,
                                   &load_calibration_text, c.calibration_sha256);
   c.model.rig.singularity_threshold = c.singularity_threshold;
+  check_speed_bounds(c, root, file);
   return c;
 }
 }  // namespace
@@ -254,8 +311,8 @@ drivers::SourceContext make_source_context(const ServiceConfig& config) {
     j.upper_rad = config.model.chain.joints()[idx].limits.upper;
     j.max_speed_rad_s = e.max_speed_rad_s;
   }
-  ctx.chain = config.model.chain;
-  ctx.rig = config.model.rig;
+  ctx.chain = std::make_shared<const kin::Chain>(config.model.chain);
+  ctx.rig = std::make_shared<const kin::RigKinematicsConfig>(config.model.rig);
   return ctx;
 }
 
@@ -279,30 +336,59 @@ std::string provenance_text(const CalibrationProvenance& p) {
   return out;
 }
 
+namespace {
+
+// One section's declared settings as "k: v" items, each value as YAML.
+class YamlItems {
+ public:
+  template <typename T>
+  void operator()(const Declaration& d, const T& v) {
+    std::string text = detail::value_text(d, v);
+    if constexpr (std::is_same_v<T, std::string>) {
+      if (d.rule.choices.empty()) text = setting_quoted(text);
+    }
+    items_.push_back(std::string(d.key) + ": " + text);
+  }
+  std::string flow() const {
+    std::string out = "{";
+    for (std::size_t i = 0; i < items_.size(); ++i) out += (i ? ", " : "") + items_[i];
+    return out + "}";
+  }
+  std::string block(const std::string& indent) const {
+    std::string out;
+    for (const auto& item : items_) out += indent + item + "\n";
+    return out;
+  }
+
+ private:
+  std::vector<std::string> items_;
+};
+
+template <typename S, typename Visit>
+std::string flow_of(const S& s, Visit visit) {
+  YamlItems items;
+  visit(s, items);
+  return items.flow();
+}
+
+}  // namespace
+
 std::string to_yaml(const ServiceConfig& c) {
   const auto n = [](double v) { return setting_number(v); };
-  const auto b = [](bool v) { return v ? "true" : "false"; };
   const auto q = [](const std::string& v) { return setting_quoted(v); };
   std::ostringstream o;
   o << "# effective configuration of " << c.file << "\n";
   o << "config: {path: " << q(c.file) << ", sha256: " << c.config_sha256 << "}\n";
-  o << "rig: " << q(c.rig) << "\n";
-  o << "loop: {rate_hz: " << n(c.loop.rate_hz) << ", cpu: " << c.loop.cpu
-    << ", priority: " << c.loop.priority << ", lock_memory: " << b(c.loop.lock_memory)
-    << ", fault_after_ms: " << c.loop.fault_after_ms
-    << ", status_rate_hz: " << n(c.loop.status_rate_hz) << "}\n";
+  YamlItems top;
+  detail::visit_top(c, top);
+  o << top.block("");
+  o << "loop: " << flow_of(c.loop, [](auto& s, auto& v) { detail::visit_loop(s, v); }) << "\n";
   o << "source: " << drivers::describe(c.source) << "\n";
-  o << "encoders:\n  cycles_per_rev: " << c.encoders.cycles_per_rev
-    << "\n  decoding: " << c.encoders.decoding << "\n  stale_ms: " << n(c.encoders.stale_ms)
-    << "\n  index_tolerance_counts: " << c.encoders.index_tolerance_counts
-    << "\n  limit_margin_deg: " << n(c.encoders.limit_margin_deg)
-    << "\n  speed_margin: " << n(c.encoders.speed_margin)
-    << "\n  velocity_window: " << c.encoders.velocity_window
-    << "\n  fault_hold_ms: " << n(c.encoders.fault_hold_ms) << "\n  joints:\n";
+  YamlItems encoders;
+  detail::visit_encoders(c.encoders, encoders);
+  o << "encoders:\n" << encoders.block("  ") << "  joints:\n";
   for (const auto& j : c.encoders.joints) {
-    o << "    - {channel: " << j.channel << ", direction: " << j.direction
-      << ", gear_ratio: " << n(j.gear_ratio) << ", max_speed_rad_s: " << n(j.max_speed_rad_s)
-      << "}\n";
+    o << "    - " << flow_of(j, [](auto& s, auto& v) { detail::visit_joint(s, v); }) << "\n";
   }
   o << "model: {path: " << q(c.model_path) << ", sha256: " << c.model_sha256
     << ", name: " << q(c.model.name) << ", joint_names: [";
@@ -318,16 +404,12 @@ std::string to_yaml(const ServiceConfig& c) {
       << n(c.calibration.encoder_offset_rad[static_cast<std::size_t>(i)] / kDegToRad);
   }
   o << "]}\n";
-  o << "kinematics: {singularity_threshold: " << n(c.singularity_threshold) << "}\n";
-  o << "lcm: {url: " << q(c.lcm.url) << ", prefix: " << q(c.lcm.prefix)
-    << ", publish_raw: " << b(c.lcm.publish_raw) << "}\n";
-  o << "clock: {require_sync: " << require_sync_name(c.clock.require_sync)
-    << ", max_est_error_us: " << n(c.clock.max_est_error_us)
-    << ", max_max_error_us: " << n(c.clock.max_max_error_us)
-    << ", step_threshold_ms: " << n(static_cast<double>(c.clock.step_threshold_ns) / 1e6)
-    << ", slew_ppm: " << n(c.clock.slew_ppm) << ", step_slew_ppm: " << n(c.clock.step_slew_ppm)
-    << "}\n";
-  o << "logging: {level: " << c.logging.level << ", sink: " << c.logging.sink << "}\n";
+  o << "kinematics: " << flow_of(c, [](auto& s, auto& v) { detail::visit_kinematics(s, v); })
+    << "\n";
+  o << "lcm: " << flow_of(c.lcm, [](auto& s, auto& v) { detail::visit_lcm(s, v); }) << "\n";
+  o << "clock: " << flow_of(c.clock, [](auto& s, auto& v) { detail::visit_clock(s, v); }) << "\n";
+  o << "logging: " << flow_of(c.logging, [](auto& s, auto& v) { detail::visit_logging(s, v); })
+    << "\n";
   return o.str();
 }
 

@@ -1,9 +1,14 @@
 #include "exodaq/config/setting_classes.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <type_traits>
+
+#include "exodaq/config/yaml_reader.hpp"
+#include "setting_visit.hpp"
 
 namespace exodaq::config {
 
@@ -31,129 +36,169 @@ std::string setting_quoted(std::string_view v) {
   return out + "\"";
 }
 
-const char* require_sync_name(RequireSync r) {
-  switch (r) {
-    case RequireSync::kIgnore:
-      return "ignore";
-    case RequireSync::kHold:
-      return "hold";
-    case RequireSync::kMark:
-      break;
+namespace detail {
+
+std::vector<std::string> choices_of(const Rule& r) {
+  std::vector<std::string> out;
+  std::string_view rest = r.choices;
+  while (!rest.empty()) {
+    const auto bar = rest.find('|');
+    out.emplace_back(rest.substr(0, bar));
+    rest = bar == std::string_view::npos ? std::string_view{} : rest.substr(bar + 1);
   }
-  return "mark";
+  return out;
 }
+
+std::string value_text(const Declaration&, bool v) {
+  return v ? "true" : "false";
+}
+std::string value_text(const Declaration& d, int v) {
+  return value_text(d, static_cast<std::int64_t>(v));
+}
+std::string value_text(const Declaration& d, std::int64_t v) {
+  if (d.unit.scale != 1.0) return setting_number(static_cast<double>(v) / d.unit.scale);
+  return std::to_string(v);
+}
+std::string value_text(const Declaration&, double v) {
+  return setting_number(v);
+}
+std::string value_text(const Declaration&, const std::string& v) {
+  return v;
+}
+std::string value_text(const Declaration& d, RequireSync v) {
+  const auto choices = choices_of(d.rule);
+  const auto i = static_cast<std::size_t>(v);
+  return i < choices.size() ? choices[i] : "?";
+}
+
+}  // namespace detail
 
 namespace {
 
-class Table {
- public:
-  void live(std::string key, std::string value) {
-    add(std::move(key), std::move(value), Apply::kLive);
-  }
-  void restart(std::string key, std::string value) {
-    add(std::move(key), std::move(value), Apply::kRestart);
-  }
-  template <typename T>
-  static std::string text(const T& v) {
-    if constexpr (std::is_same_v<T, bool>) {
-      return v ? "true" : "false";
-    } else if constexpr (std::is_floating_point_v<T>) {
-      return setting_number(v);
-    } else if constexpr (std::is_integral_v<T>) {
-      return std::to_string(v);
-    } else {
-      return std::string(v);
-    }
-  }
-  std::vector<Setting> take() { return std::move(rows_); }
+using detail::Declaration;
 
- private:
-  void add(std::string key, std::string value, Apply apply) {
-    rows_.push_back({std::move(key), std::move(value), apply});
-  }
-  std::vector<Setting> rows_;
-};
-
-// Read only at start-up: the loop thread's scheduling and rate, the status
-// rate and fault delay (the loop's state machine), the source, the LCM
-// transport and channels, the names strings carried in every message.
-void start_up_settings(const ServiceConfig& c, Table& t) {
-  t.restart("rig", c.rig);
-  t.restart("loop.rate_hz", Table::text(c.loop.rate_hz));
-  t.restart("loop.cpu", Table::text(c.loop.cpu));
-  t.restart("loop.priority", Table::text(c.loop.priority));
-  t.restart("loop.lock_memory", Table::text(c.loop.lock_memory));
-  t.restart("loop.fault_after_ms", Table::text(c.loop.fault_after_ms));
-  t.restart("loop.status_rate_hz", Table::text(c.loop.status_rate_hz));
-  t.restart("source", drivers::describe(c.source));
+Setting setting(std::string key, std::string value, Apply apply, bool new_segment = false) {
+  return {std::move(key), std::move(value), apply, new_segment};
 }
 
-// Applied at a cycle boundary: the joint trackers (a change of channel,
-// direction, gear ratio or counts per revolution re-homes the joint), the
-// chain with its calibration, the clock policy.
-void encoder_settings(const ServiceConfig& c, Table& t) {
-  const EncoderSettings& e = c.encoders;
-  t.live("encoders.cycles_per_rev", Table::text(e.cycles_per_rev));
-  t.live("encoders.decoding", Table::text(e.decoding));
-  t.live("encoders.stale_ms", Table::text(e.stale_ms));
-  t.live("encoders.index_tolerance_counts", Table::text(e.index_tolerance_counts));
-  t.live("encoders.limit_margin_deg", Table::text(e.limit_margin_deg));
-  t.live("encoders.speed_margin", Table::text(e.speed_margin));
-  t.live("encoders.velocity_window", Table::text(e.velocity_window));
-  t.live("encoders.fault_hold_ms", Table::text(e.fault_hold_ms));
-  for (std::size_t i = 0; i < e.joints.size(); ++i) {
-    const std::string j = "encoders.joints[" + std::to_string(i) + "].";
-    t.live(j + "channel", Table::text(e.joints[i].channel));
-    t.live(j + "direction", Table::text(e.joints[i].direction));
-    t.live(j + "gear_ratio", Table::text(e.joints[i].gear_ratio));
-    t.live(j + "max_speed_rad_s", Table::text(e.joints[i].max_speed_rad_s));
-  }
+// The files' facts: the config itself (read again by every reload; its path
+// cannot change), the source (restart-only, with all its backend's options),
+// the model and calibration files (a new content starts a new segment).
+void config_facts(const ServiceConfig& c, std::vector<Setting>& t) {
+  t.push_back(setting("config.path", c.file, Apply::kLive));
+  t.push_back(setting("config.sha256", c.config_sha256, Apply::kLive));
 }
 
-void file_settings(const ServiceConfig& c, Table& t) {
-  t.live("model.path", c.model_path);
-  t.live("model.sha256", c.model_sha256);
-  t.live("model.name", c.model.name);
+void source_facts(const ServiceConfig& c, std::vector<Setting>& t) {
+  t.push_back(setting("source", drivers::describe(c.source), Apply::kRestart));
+}
+
+void file_facts(const ServiceConfig& c, std::vector<Setting>& t) {
+  t.push_back(setting("model.path", c.model_path, Apply::kLive));
+  t.push_back(setting("model.sha256", c.model_sha256, Apply::kLive, true));
+  t.push_back(setting("model.name", c.model.name, Apply::kLive));
   // The joint names are in every joint_state_t and status_t the loop encodes
   // from strings set at start-up (the loop assigns no strings).
   for (std::size_t i = 0; i < c.model.chain.joints().size(); ++i) {
-    t.restart("model.joint_names[" + std::to_string(i) + "]", c.model.chain.joints()[i].name);
+    t.push_back(setting("model.joint_names[" + std::to_string(i) + "]",
+                        c.model.chain.joints()[i].name, Apply::kRestart));
   }
-  t.live("calibration.path", c.calibration_path);
-  t.live("calibration.sha256", c.calibration_sha256);
-  t.live("calibration.provenance", provenance_text(c.calibration.provenance));
+  t.push_back(setting("calibration.path", c.calibration_path, Apply::kLive));
+  t.push_back(setting("calibration.sha256", c.calibration_sha256, Apply::kLive, true));
+  t.push_back(
+      setting("calibration.provenance", provenance_text(c.calibration.provenance), Apply::kLive));
   for (std::size_t i = 0; i < c.calibration.encoder_offset_rad.size(); ++i) {
-    t.live("calibration.encoder_offsets_deg[" + std::to_string(i) + "]",
-           Table::text(c.calibration.encoder_offset_rad[i] / kDegToRad));
+    t.push_back(setting("calibration.encoder_offsets_deg[" + std::to_string(i) + "]",
+                        setting_number(c.calibration.encoder_offset_rad[i] / kDegToRad),
+                        Apply::kLive));
   }
-  t.live("kinematics.singularity_threshold", Table::text(c.singularity_threshold));
+}
+
+std::string full_key(const std::string& section, const Declaration& d) {
+  return section.empty() ? std::string(d.key) : section + "." + std::string(d.key);
 }
 
 }  // namespace
 
 std::vector<Setting> settings_of(const ServiceConfig& c) {
-  Table t;
-  // The file itself: read again by every reload (the path cannot change).
-  t.live("config.path", c.file);
-  t.live("config.sha256", c.config_sha256);
-  start_up_settings(c, t);
-  encoder_settings(c, t);
-  file_settings(c, t);
-  t.restart("lcm.url", c.lcm.url);
-  t.restart("lcm.prefix", c.lcm.prefix);
-  t.restart("lcm.publish_raw", Table::text(c.lcm.publish_raw));
-  t.live("clock.require_sync", require_sync_name(c.clock.require_sync));
-  t.live("clock.max_est_error_us", Table::text(c.clock.max_est_error_us));
-  t.live("clock.max_max_error_us", Table::text(c.clock.max_max_error_us));
-  t.live("clock.step_threshold_ms",
-         Table::text(static_cast<double>(c.clock.step_threshold_ns) / 1e6));
-  t.live("clock.slew_ppm", Table::text(c.clock.slew_ppm));
-  t.live("clock.step_slew_ppm", Table::text(c.clock.step_slew_ppm));
-  // The daemon sets the level at once (unless --log-level or SPDLOG_LEVEL
-  // overrides it); the sink is opened at start-up.
-  t.live("logging.level", c.logging.level);
-  t.restart("logging.sink", c.logging.sink);
-  return t.take();
+  std::vector<Setting> t;
+  config_facts(c, t);
+  // The facts where --print-config shows them: the source before the
+  // encoders, the files before kinematics.
+  std::string last;
+  detail::visit_settings(c, [&](const std::string& section, const Declaration& d, const auto& v) {
+    if (section != last && section == "encoders") source_facts(c, t);
+    if (section != last && section == "kinematics") file_facts(c, t);
+    last = section;
+    t.push_back(setting(full_key(section, d), detail::value_text(d, v),
+                        d.reload == Reload::kRestart ? Apply::kRestart : Apply::kLive,
+                        d.reload == Reload::kNewSegment));
+  });
+  return t;
+}
+
+namespace {
+
+const char* type_name(const Declaration&, bool) {
+  return "true/false";
+}
+const char* type_name(const Declaration& d, double) {
+  return d.rule.choices.empty() ? "number" : "one of";
+}
+template <typename T, typename = std::enable_if_t<std::is_integral_v<T>>>
+const char* type_name(const Declaration& d, T) {
+  if (!d.rule.choices.empty()) return "one of";
+  return d.unit.scale != 1.0 ? "number" : "integer";
+}
+const char* type_name(const Declaration& d, const std::string&) {
+  return d.rule.choices.empty() ? "text" : "one of";
+}
+const char* type_name(const Declaration&, RequireSync) {
+  return "one of";
+}
+
+// A rule for a reader: the error's words after the key, or the choices.
+std::string rule_text(const Declaration& d) {
+  std::string text(d.rule.text);
+  if (text.empty() && !d.rule.choices.empty()) {
+    text = "one of";
+    for (const auto& c : detail::choices_of(d.rule)) text += (text.size() == 6 ? " " : ", ") + c;
+  }
+  return text.empty() ? "-" : text;
+}
+
+const char* reload_name(Reload r) {
+  switch (r) {
+    case Reload::kLive:
+      return "live";
+    case Reload::kNewSegment:
+      return "live, new segment";
+    case Reload::kRestart:
+      break;
+  }
+  return "restart";
+}
+
+}  // namespace
+
+std::string settings_table() {
+  std::string out =
+      "| key | type | default | rule | unit | reload | what |\n"
+      "|---|---|---|---|---|---|---|\n";
+  const ServiceConfig defaults;
+  detail::visit_settings(defaults, [&](const std::string& section, const Declaration& d,
+                                       const auto& v) {
+    const bool joint = section.rfind(std::string(detail::kJointsSection), 0) == 0;
+    if (joint && section != detail::joint_section(0)) return;
+    const std::string key = joint ? std::string(detail::kJointsSection) + "[]." + std::string(d.key)
+                                  : full_key(section, d);
+    std::string value = d.rule.required ? "required" : detail::value_text(d, v);
+    if (value.empty()) value = "\"\"";
+    out += "| `" + key + "` | " + type_name(d, v) + " | " + value + " | " + rule_text(d) + " | " +
+           std::string(d.unit.name) + " | " + reload_name(d.reload) + " | " + std::string(d.doc) +
+           " |\n";
+  });
+  return out;
 }
 
 std::vector<SettingChange> compare_settings(const ServiceConfig& before,
@@ -167,13 +212,19 @@ std::vector<SettingChange> compare_settings(const ServiceConfig& before,
     const auto it = old.find(s.key);
     const std::string was = it == old.end() ? "(none)" : it->second->value;
     if (it != old.end()) old.erase(it);
-    if (was != s.value) out.push_back({s.key, was, s.value, s.apply});
+    if (was != s.value) out.push_back({s.key, was, s.value, s.apply, s.new_segment});
   }
   // Keys only the old configuration had (none today: the lists have fixed keys).
   for (const auto& s : a) {
-    if (old.count(s.key) != 0) out.push_back({s.key, s.value, "(none)", s.apply});
+    if (old.count(s.key) != 0) out.push_back({s.key, s.value, "(none)", s.apply, s.new_segment});
   }
   return out;
+}
+
+bool starts_new_segment(const std::vector<SettingChange>& changes) {
+  return std::any_of(changes.begin(), changes.end(), [](const SettingChange& c) {
+    return c.apply == Apply::kLive && c.new_segment;
+  });
 }
 
 std::string describe_changes(const std::vector<SettingChange>& changes, std::size_t max_value) {

@@ -5,10 +5,14 @@
 //    unless a regular file within a documented size limit, before anything is
 //    read; text checked for NUL bytes and invalid UTF-8, with the line;
 //  - outputs (OutputFile): written to a temporary file beside the target,
-//    fsync'ed, renamed over the target only when complete; a symlink is
-//    followed (its target replaced, the link kept); anything that is not a
-//    regular file is refused, and so are a file the user may not write and an
-//    output that is one of the inputs;
+//    fsync'ed, renamed over the target only when complete; a symlink (the
+//    last name or a folder on the way) is followed (its target replaced, the
+//    link kept) only when it is the caller's, or root's in a folder of the
+//    caller's or root's (never in a sticky world-writable folder not root's):
+//    fs.protected_symlinks in user space, whatever the sysctl says; the
+//    folder is held open from the checks to the rename; anything that is not
+//    a regular file is refused, and so are a file the user may not write and
+//    an output that is one of the inputs;
 //    every error names the file and errno's reason, and leaves no partial
 //    file. "-" is standard output where the caller allows it (text outputs).
 // Errors are FileError "<file>: <what>". Off the loop thread only.
@@ -112,8 +116,11 @@ class OutputFile {
 
   std::string path_;
   std::string target_;
-  std::string temp_;
+  std::string temp_;       // the temporary file as text, for messages
+  std::string temp_name_;  // its name in dir_fd_
+  std::string name_;       // the target's name in dir_fd_
   std::string buffer_;
+  int dir_fd_ = -1;  // the target's folder, held open from the checks to the rename
   int fd_ = -1;
   bool stdout_ = false;
   bool done_ = false;

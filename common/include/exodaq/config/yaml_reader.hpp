@@ -12,21 +12,9 @@
 #include <string>
 #include <vector>
 
+#include "exodaq/config/config_error.hpp"
+
 namespace exodaq::config {
-
-// "file:line: what" (line is 1-based; omitted when unknown).
-class ConfigError : public std::runtime_error {
- public:
-  ConfigError(std::string file, int line, const std::string& what);
-  const std::string& file() const noexcept { return file_; }
-  int line() const noexcept { return line_; }
-  const std::string& reason() const noexcept { return reason_; }
-
- private:
-  std::string file_;
-  int line_;
-  std::string reason_;
-};
 
 // Parses a whole file. Throws ConfigError for unreadable files, YAML syntax
 // errors (with the parser's line) and empty documents.

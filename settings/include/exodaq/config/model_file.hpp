@@ -6,7 +6,7 @@
 // for every problem and never crashes on any input.
 #include <string>
 
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/config/config_error.hpp"
 #include "exodaq/kinematics/chain.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
 
