@@ -3,11 +3,7 @@
 #include <cctype>
 #include <cstring>
 
-#include "exodaq/encoder_raw_t.hpp"
-#include "exodaq/homing_t.hpp"
-#include "exodaq/joint_state_t.hpp"
-#include "exodaq/palm_pose_t.hpp"
-#include "exodaq/status_t.hpp"
+#include "exodaq/message_types.hpp"
 
 namespace exodaq::msg {
 
@@ -17,16 +13,30 @@ struct KindInfo {
   Kind kind;
   std::string_view base;
   std::string_view type;
-  std::string_view short_name;
+  bool per_cycle;
+  std::string_view aliases;  // space-separated
+
+  // The type without its "_t": "joint_state".
+  constexpr std::string_view short_name() const { return type.substr(0, type.size() - 2); }
 };
 
 constexpr std::array<KindInfo, kKindCount> kInfo = {{
-    {Kind::kJointState, "EXO_JOINT_STATE", "joint_state_t", "joint_state"},
-    {Kind::kPalmPose, "EXO_PALM_POSE", "palm_pose_t", "palm_pose"},
-    {Kind::kEncoderRaw, "EXO_ENCODER_RAW", "encoder_raw_t", "encoder_raw"},
-    {Kind::kStatus, "EXO_STATUS", "status_t", "status"},
-    {Kind::kHoming, "EXO_HOMING", "homing_t", "homing"},
+#define EXODAQ_MESSAGE(kind, type, channel, per_cycle, aliases) \
+  {Kind::kind, channel, #type, per_cycle, aliases},
+#include "exodaq/messages/message_list.def"
+#undef EXODAQ_MESSAGE
 }};
+
+// kInfo and kAllKinds hold every kind once, at its own index.
+constexpr bool in_kind_order() {
+  for (std::size_t i = 0; i < kInfo.size(); ++i) {
+    if (static_cast<std::size_t>(kInfo[i].kind) != i) return false;
+    if (static_cast<std::size_t>(kAllKinds[i]) != i) return false;
+    if (!kInfo[i].type.ends_with("_t") || kInfo[i].type.size() < 3) return false;
+  }
+  return true;
+}
+static_assert(in_kind_order(), "message_list.def: every kind once, in order, types ending in _t");
 
 const KindInfo& info(Kind k) noexcept {
   return kInfo[static_cast<std::size_t>(k)];
@@ -36,6 +46,17 @@ std::string upper(std::string_view s) {
   std::string out(s);
   for (auto& c : out) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   return out;
+}
+
+// Whether `upper_text` is one of the space-separated `aliases`, in any case.
+bool is_alias(std::string_view aliases, const std::string& upper_text) {
+  while (!aliases.empty()) {
+    const std::size_t end = aliases.find(' ');
+    if (upper(aliases.substr(0, end)) == upper_text) return true;
+    if (end == std::string_view::npos) break;
+    aliases.remove_prefix(end + 1);
+  }
+  return false;
 }
 
 template <typename T>
@@ -57,6 +78,10 @@ std::string channel_name(std::string_view prefix, Kind k) {
   return std::string(prefix) + std::string(base_channel(k));
 }
 
+bool is_per_cycle(Kind k) noexcept {
+  return info(k).per_cycle;
+}
+
 std::optional<ChannelParts> split_channel(std::string_view channel) {
   for (const auto& i : kInfo) {
     if (channel.size() >= i.base.size() &&
@@ -69,12 +94,11 @@ std::optional<ChannelParts> split_channel(std::string_view channel) {
 
 std::optional<Kind> parse_kind(std::string_view text) {
   const std::string u = upper(text);
+  if (u.empty()) return std::nullopt;
   for (const auto& i : kInfo) {
-    if (u == upper(i.base) || u == upper(i.type) || u == upper(i.short_name)) return i.kind;
+    if (u == upper(i.base) || u == upper(i.type) || u == upper(i.short_name())) return i.kind;
+    if (is_alias(i.aliases, u)) return i.kind;
   }
-  if (u == "JOINT" || u == "JOINTS") return Kind::kJointState;
-  if (u == "PALM" || u == "POSE") return Kind::kPalmPose;
-  if (u == "RAW" || u == "ENCODER") return Kind::kEncoderRaw;
   return std::nullopt;
 }
 
@@ -83,11 +107,10 @@ std::optional<Kind> kind_of_payload(const void* data, std::size_t size) noexcept
   const auto* b = static_cast<const unsigned char*>(data);
   std::uint64_t fp = 0;
   for (int i = 0; i < 8; ++i) fp = (fp << 8) | b[i];
-  if (fp == fingerprint<joint_state_t>()) return Kind::kJointState;
-  if (fp == fingerprint<palm_pose_t>()) return Kind::kPalmPose;
-  if (fp == fingerprint<encoder_raw_t>()) return Kind::kEncoderRaw;
-  if (fp == fingerprint<status_t>()) return Kind::kStatus;
-  if (fp == fingerprint<homing_t>()) return Kind::kHoming;
+#define EXODAQ_MESSAGE(kind, type, channel, per_cycle, aliases) \
+  if (fp == fingerprint<type>()) return Kind::kind;
+#include "exodaq/messages/message_list.def"
+#undef EXODAQ_MESSAGE
   return std::nullopt;
 }
 

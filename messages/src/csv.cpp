@@ -41,24 +41,34 @@ const auto kNum = [](auto v) { return num(v); };
 const auto kDbl = [](double v) { return number(v); };
 const auto kBool = [](std::int8_t v) { return std::string(v ? "1" : "0"); };
 
-// joint_state_t
-void joint_header(std::vector<std::string>& h, const JointNames& j) {
-  per_joint(h, j, kPositionSuffix);
-  per_joint(h, j, kVelocitySuffix);
-  per_joint(h, j, kCountSuffix);
-  per_joint(h, j, kHomedSuffix);
-  per_joint(h, j, kFlagsSuffix);
-  h.emplace_back("sample_flags");
-}
+// The columns of each message type after the header: header() names them (with
+// `joints`, the per-joint columns' names), values() fills them in the same
+// order; kTextColumns, where present, names those holding text. One
+// specialisation per type of the list (message_list.def): a type without one
+// does not compile.
+template <typename T>
+struct Columns;
 
-void joint_values(const joint_state_t& m, std::vector<std::string>& out) {
-  each(m.position, out, kDbl);
-  each(m.velocity, out, kDbl);
-  each(m.raw_count, out, kNum);
-  each(m.homed, out, kBool);
-  each(m.flags, out, kNum);
-  out.push_back(num(m.sample_flags));
-}
+template <>
+struct Columns<joint_state_t> {
+  static void header(std::vector<std::string>& h, const JointNames& j) {
+    per_joint(h, j, kPositionSuffix);
+    per_joint(h, j, kVelocitySuffix);
+    per_joint(h, j, kCountSuffix);
+    per_joint(h, j, kHomedSuffix);
+    per_joint(h, j, kFlagsSuffix);
+    h.emplace_back("sample_flags");
+  }
+
+  static void values(const joint_state_t& m, std::vector<std::string>& out) {
+    each(m.position, out, kDbl);
+    each(m.velocity, out, kDbl);
+    each(m.raw_count, out, kNum);
+    each(m.homed, out, kBool);
+    each(m.flags, out, kNum);
+    out.push_back(num(m.sample_flags));
+  }
+};
 
 // palm_pose_t
 constexpr const char* kPalmColumns[] = {"palm_x_m",      "palm_y_m",       "palm_z_m",
@@ -68,61 +78,74 @@ constexpr const char* kPalmColumns[] = {"palm_x_m",      "palm_y_m",       "palm
                                         "near_singular", "palm_valid",     "palm_invalid_reason"};
 constexpr std::size_t kPalmCount = sizeof kPalmColumns / sizeof kPalmColumns[0];
 
-void palm_values(const palm_pose_t& m, std::vector<std::string>& out) {
-  each(m.position, out, kDbl);
-  each(m.orientation, out, kDbl);
-  each(m.elbow, out, kDbl);
-  out.push_back(number(m.shoulder_manipulability));
-  out.push_back(number(m.shoulder_manipulability_raw));
-  out.push_back(kBool(m.near_singular));
-  out.push_back(kBool(m.valid));
-  out.push_back(num(m.invalid_reason));
-}
+template <>
+struct Columns<palm_pose_t> {
+  static void header(std::vector<std::string>& h, const JointNames&) {
+    h.insert(h.end(), std::begin(kPalmColumns), std::end(kPalmColumns));
+  }
+
+  static void values(const palm_pose_t& m, std::vector<std::string>& out) {
+    each(m.position, out, kDbl);
+    each(m.orientation, out, kDbl);
+    each(m.elbow, out, kDbl);
+    out.push_back(number(m.shoulder_manipulability));
+    out.push_back(number(m.shoulder_manipulability_raw));
+    out.push_back(kBool(m.near_singular));
+    out.push_back(kBool(m.valid));
+    out.push_back(num(m.invalid_reason));
+  }
+};
 
 // encoder_raw_t: arrays by board channel.
-void raw_header(std::vector<std::string>& h) {
-  h.emplace_back("present");
-  h.emplace_back("board_seq");
-  for (const char* f : {"count16_ch", "index_count16_ch"}) {
-    for (int c = 0; c < kJoints; ++c) h.push_back(f + std::to_string(c));
+template <>
+struct Columns<encoder_raw_t> {
+  static void header(std::vector<std::string>& h, const JointNames&) {
+    h.emplace_back("present");
+    h.emplace_back("board_seq");
+    for (const char* f : {"count16_ch", "index_count16_ch"}) {
+      for (int c = 0; c < kJoints; ++c) h.push_back(f + std::to_string(c));
+    }
+    for (const char* c : {"index_latched", "index_count_valid", "board_state", "board_errors",
+                          "source_flags", "wall_ns"}) {
+      h.emplace_back(c);
+    }
   }
-  for (const char* c : {"index_latched", "index_count_valid", "board_state", "board_errors",
-                        "source_flags", "wall_ns"}) {
-    h.emplace_back(c);
-  }
-}
 
-void raw_values(const encoder_raw_t& m, std::vector<std::string>& out) {
-  out.push_back(kBool(m.present));
-  out.push_back(num(m.board_seq));
-  each(m.count16, out, kNum);
-  each(m.index_count16, out, kNum);
-  for (const std::int64_t v : {std::int64_t{m.index_latched}, std::int64_t{m.index_count_valid},
-                               std::int64_t{m.board_state}, std::int64_t{m.board_errors},
-                               std::int64_t{m.source_flags}, m.wall_ns}) {
-    out.push_back(num(v));
+  static void values(const encoder_raw_t& m, std::vector<std::string>& out) {
+    out.push_back(kBool(m.present));
+    out.push_back(num(m.board_seq));
+    each(m.count16, out, kNum);
+    each(m.index_count16, out, kNum);
+    for (const std::int64_t v : {std::int64_t{m.index_latched}, std::int64_t{m.index_count_valid},
+                                 std::int64_t{m.board_state}, std::int64_t{m.board_errors},
+                                 std::int64_t{m.source_flags}, m.wall_ns}) {
+      out.push_back(num(v));
+    }
   }
-}
+};
 
 // homing_t: arrays by joint (numbered: the record carries no names).
-void homing_header(std::vector<std::string>& h) {
-  h.emplace_back("changed");
-  for (const char* f : {"counted_j", "count_j", "powerup_count_j", "homing_j", "index_count_j",
-                        "index_turns_j", "index_angle_rad_j"}) {
-    for (int c = 0; c < kJoints; ++c) h.push_back(f + std::to_string(c + 1));
+template <>
+struct Columns<homing_t> {
+  static void header(std::vector<std::string>& h, const JointNames&) {
+    h.emplace_back("changed");
+    for (const char* f : {"counted_j", "count_j", "powerup_count_j", "homing_j", "index_count_j",
+                          "index_turns_j", "index_angle_rad_j"}) {
+      for (int c = 0; c < kJoints; ++c) h.push_back(f + std::to_string(c + 1));
+    }
   }
-}
 
-void homing_values(const homing_t& m, std::vector<std::string>& out) {
-  out.push_back(num(m.changed));
-  each(m.counted, out, kBool);
-  each(m.count, out, kNum);
-  each(m.powerup_count, out, kNum);
-  each(m.homing, out, kNum);
-  each(m.index_count, out, kNum);
-  each(m.index_turns, out, kNum);
-  each(m.index_angle, out, kDbl);
-}
+  static void values(const homing_t& m, std::vector<std::string>& out) {
+    out.push_back(num(m.changed));
+    each(m.counted, out, kBool);
+    each(m.count, out, kNum);
+    each(m.powerup_count, out, kNum);
+    each(m.homing, out, kNum);
+    each(m.index_count, out, kNum);
+    each(m.index_turns, out, kNum);
+    each(m.index_angle, out, kDbl);
+  }
+};
 
 // status_t
 constexpr const char* kStatusTimingColumns[] = {
@@ -155,63 +178,77 @@ constexpr const char* kStatusCounterColumns[] = {"overruns",
                                                  "calibration_provenance",
                                                  "reloads",
                                                  "foreign_run_id"};
-// The status columns status_values() fills with text.
-constexpr const char* kStatusTextColumns[] = {"rig",
-                                              "message",
-                                              "source",
-                                              "config_path",
-                                              "config_sha256",
-                                              "calibration_path",
-                                              "calibration_sha256",
-                                              "calibration_provenance",
-                                              "foreign_run_id"};
 constexpr const char* kStatusJointSuffixes[] = {"_homing",       "_flags",
                                                 "_glitches",     "_lost_count_events",
                                                 "_stale_events", "_out_of_range_events"};
 
-void status_header(std::vector<std::string>& h, const JointNames& j) {
-  for (const char* c : {"rig", "state", "message", "window_cycles"}) h.emplace_back(c);
-  for (const char* c : kStatusTimingColumns) h.emplace_back(c);
-  for (const char* c : kStatusCounterColumns) h.emplace_back(c);
-  for (const char* s : kStatusJointSuffixes) per_joint(h, j, s);
-}
+template <>
+struct Columns<status_t> {
+  // The columns values() fills with text.
+  static constexpr const char* kTextColumns[] = {"rig",
+                                                 "message",
+                                                 "source",
+                                                 "config_path",
+                                                 "config_sha256",
+                                                 "calibration_path",
+                                                 "calibration_sha256",
+                                                 "calibration_provenance",
+                                                 "foreign_run_id"};
 
-void status_values(const status_t& m, std::vector<std::string>& out) {
-  out.push_back(m.rig);
-  out.push_back(num(m.state));
-  out.push_back(m.message);
-  out.push_back(num(m.window_cycles));
-  for (const double v :
-       {m.period_p50_us, m.period_p99_us, m.period_max_us, m.lateness_p50_us, m.lateness_p99_us,
-        m.lateness_max_us, m.work_p50_us, m.work_p99_us, m.work_max_us}) {
-    out.push_back(number(v));
+  static void header(std::vector<std::string>& h, const JointNames& j) {
+    for (const char* c : {"rig", "state", "message", "window_cycles"}) h.emplace_back(c);
+    for (const char* c : kStatusTimingColumns) h.emplace_back(c);
+    for (const char* c : kStatusCounterColumns) h.emplace_back(c);
+    for (const char* s : kStatusJointSuffixes) per_joint(h, j, s);
   }
-  for (const std::int64_t v : {m.overruns, m.cycles, m.publish_failures}) out.push_back(num(v));
-  out.push_back(m.source);
-  for (const std::int64_t v : {m.frames, m.bad_frames, m.missing_samples, m.seq_gaps, m.duplicates,
-                               m.out_of_order, m.bus_errors, m.rx_overflows}) {
-    out.push_back(num(v));
+
+  static void values(const status_t& m, std::vector<std::string>& out) {
+    out.push_back(m.rig);
+    out.push_back(num(m.state));
+    out.push_back(m.message);
+    out.push_back(num(m.window_cycles));
+    for (const double v :
+         {m.period_p50_us, m.period_p99_us, m.period_max_us, m.lateness_p50_us, m.lateness_p99_us,
+          m.lateness_max_us, m.work_p50_us, m.work_p99_us, m.work_max_us}) {
+      out.push_back(number(v));
+    }
+    for (const std::int64_t v : {m.overruns, m.cycles, m.publish_failures}) out.push_back(num(v));
+    out.push_back(m.source);
+    for (const std::int64_t v : {m.frames, m.bad_frames, m.missing_samples, m.seq_gaps,
+                                 m.duplicates, m.out_of_order, m.bus_errors, m.rx_overflows}) {
+      out.push_back(num(v));
+    }
+    out.push_back(num(m.bus_state));
+    out.push_back(num(m.board_errors));
+    out.push_back(kBool(m.clock_synchronised));
+    for (const double v :
+         {m.clock_est_error_us, m.clock_max_error_us, m.clock_offset_us, m.utime_correction_us}) {
+      out.push_back(number(v));
+    }
+    out.push_back(num(m.clock_steps));
+    for (const std::string* v : {&m.config_path, &m.config_sha256, &m.calibration_path,
+                                 &m.calibration_sha256, &m.calibration_provenance}) {
+      out.push_back(*v);
+    }
+    out.push_back(num(m.reloads));
+    out.push_back(run_id_text(m.foreign_run_id));
+    each(m.homing, out, kNum);
+    each(m.joint_flags, out, kNum);
+    each(m.glitches, out, kNum);
+    each(m.lost_count_events, out, kNum);
+    each(m.stale_events, out, kNum);
+    each(m.out_of_range_events, out, kNum);
   }
-  out.push_back(num(m.bus_state));
-  out.push_back(num(m.board_errors));
-  out.push_back(kBool(m.clock_synchronised));
-  for (const double v :
-       {m.clock_est_error_us, m.clock_max_error_us, m.clock_offset_us, m.utime_correction_us}) {
-    out.push_back(number(v));
+};
+
+template <typename T>
+bool is_text(std::string_view column) {
+  if constexpr (requires { Columns<T>::kTextColumns; }) {
+    for (const char* c : Columns<T>::kTextColumns) {
+      if (column == c) return true;
+    }
   }
-  out.push_back(num(m.clock_steps));
-  for (const std::string* v : {&m.config_path, &m.config_sha256, &m.calibration_path,
-                               &m.calibration_sha256, &m.calibration_provenance}) {
-    out.push_back(*v);
-  }
-  out.push_back(num(m.reloads));
-  out.push_back(run_id_text(m.foreign_run_id));
-  each(m.homing, out, kNum);
-  each(m.joint_flags, out, kNum);
-  each(m.glitches, out, kNum);
-  each(m.lost_count_events, out, kNum);
-  each(m.stale_events, out, kNum);
-  each(m.out_of_range_events, out, kNum);
+  return false;
 }
 
 }  // namespace
@@ -241,21 +278,12 @@ std::vector<std::string> header(Kind k, const JointNames& joints) {
   std::vector<std::string> h;
   add_stamp(h);
   switch (k) {
-    case Kind::kJointState:
-      joint_header(h, joints);
-      break;
-    case Kind::kPalmPose:
-      h.insert(h.end(), std::begin(kPalmColumns), std::end(kPalmColumns));
-      break;
-    case Kind::kEncoderRaw:
-      raw_header(h);
-      break;
-    case Kind::kStatus:
-      status_header(h, joints);
-      break;
-    case Kind::kHoming:
-      homing_header(h);
-      break;
+#define EXODAQ_MESSAGE(kind, type, channel, per_cycle, aliases) \
+  case Kind::kind:                                              \
+    Columns<type>::header(h, joints);                           \
+    break;
+#include "exodaq/messages/message_list.def"
+#undef EXODAQ_MESSAGE
   }
   return h;
 }
@@ -269,22 +297,20 @@ JointNames joints_of(const Message& m) {
 void append_values(const Message& m, std::vector<std::string>& out) {
   std::visit(
       [&out](const auto& v) {
-        using T = std::decay_t<decltype(v)>;
         append_stamp(v, out);
-        if constexpr (std::is_same_v<T, joint_state_t>) joint_values(v, out);
-        if constexpr (std::is_same_v<T, palm_pose_t>) palm_values(v, out);
-        if constexpr (std::is_same_v<T, encoder_raw_t>) raw_values(v, out);
-        if constexpr (std::is_same_v<T, status_t>) status_values(v, out);
-        if constexpr (std::is_same_v<T, homing_t>) homing_values(v, out);
+        Columns<std::decay_t<decltype(v)>>::values(v, out);
       },
       m);
 }
 
 bool is_text_column(Kind k, std::string_view column) {
   if (column == "run_id") return true;
-  if (k != Kind::kStatus) return false;
-  for (const char* c : kStatusTextColumns) {
-    if (column == c) return true;
+  switch (k) {
+#define EXODAQ_MESSAGE(kind, type, channel, per_cycle, aliases) \
+  case Kind::kind:                                              \
+    return is_text<type>(column);
+#include "exodaq/messages/message_list.def"
+#undef EXODAQ_MESSAGE
   }
   return false;
 }
@@ -298,9 +324,9 @@ std::vector<std::string> cycle_header(const JointNames& joints) {
 void append_cycle(const joint_state_t& joints, const palm_pose_t* palm,
                   std::vector<std::string>& out) {
   append_stamp(joints, out);
-  joint_values(joints, out);
+  Columns<joint_state_t>::values(joints, out);
   if (palm != nullptr) {
-    palm_values(*palm, out);
+    Columns<palm_pose_t>::values(*palm, out);
   } else {
     out.resize(out.size() + kPalmCount);
   }

@@ -1,24 +1,42 @@
 #pragma once
-// A decoded exodaq message of any of the five types, decoding by kind, and
-// the header every message carries.
+// A decoded exodaq message of any type of the list (message_list.def),
+// decoding by kind, and the header every message carries.
 #include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
-#include "exodaq/encoder_raw_t.hpp"
-#include "exodaq/homing_t.hpp"
-#include "exodaq/joint_state_t.hpp"
+#include "exodaq/message_types.hpp"
 #include "exodaq/messages/channels.hpp"
-#include "exodaq/palm_pose_t.hpp"
-#include "exodaq/status_t.hpp"
 
 namespace exodaq::msg {
 
-using Message = std::variant<joint_state_t, palm_pose_t, encoder_raw_t, status_t, homing_t>;
+namespace detail {
+template <typename First, typename... T>
+struct VariantOfRest {
+  using type = std::variant<T...>;
+};
+}  // namespace detail
+
+// One alternative per kind, the alternative's index being the kind's value.
+using Message = detail::VariantOfRest<void
+#define EXODAQ_MESSAGE(kind, type, channel, per_cycle, aliases) , type
+#include "exodaq/messages/message_list.def"
+#undef EXODAQ_MESSAGE
+                                      >::type;
+
+// The message type of a kind: MessageOf<Kind::kPalmPose> is palm_pose_t.
+template <Kind K>
+using MessageOf = std::variant_alternative_t<static_cast<std::size_t>(K), Message>;
+static_assert(std::variant_size_v<Message> == kAllKinds.size());
+#define EXODAQ_MESSAGE(kind, type, channel, per_cycle, aliases) \
+  static_assert(std::is_same_v<MessageOf<KindOf<type>::value>, type>);
+#include "exodaq/messages/message_list.def"
+#undef EXODAQ_MESSAGE
 
 Kind kind_of(const Message& m) noexcept;
 
@@ -56,12 +74,28 @@ struct Stamp {
   std::int64_t run_id = 0;
 };
 Stamp stamp_of(const Message& m) noexcept;
+// The kind and header of encoded bytes without decoding them: every exodaq
+// type starts, after its fingerprint, with utime, mono_ns, seq and run_id
+// (big-endian int64). nullopt for a foreign fingerprint or fewer than 40
+// bytes. For counting at wire speed (exodaq record); the message may still
+// not decode.
+struct KindStamp {
+  Kind kind = Kind::kJointState;
+  Stamp stamp;
+};
+std::optional<KindStamp> peek_stamp(const void* data, std::size_t size) noexcept;
 
 // The run id as every tool, log line and CSV spells it: the 64 bits as 16
 // lower-case hex digits ("1f3a09c2d4e5b6a7"; docs/messages.md).
 std::string run_id_text(std::int64_t run_id);
 // run_id_text() read back; nullopt unless exactly 16 hex digits.
 std::optional<std::int64_t> parse_run_id(std::string_view text);
+
+// A string from the network (a status's rig, a message text) made safe for a
+// log line or a terminal: control characters (line breaks, ESC, DEL) and
+// bytes that are not UTF-8 become \xNN (\n, \r, \t for those three);
+// everything else, UTF-8 included, is kept. Applying it twice changes nothing.
+std::string printable(std::string_view text);
 
 // The daemon encodes every type once, all zero, before its first cycle (so
 // lcm-gen's hashes are initialised off the loop); recordings hold them.
