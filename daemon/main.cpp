@@ -24,8 +24,10 @@
 
 namespace {
 
+// stderr may be a pipe nobody reads: the signals are blocked already, so a
+// write that waited for ever would make exodaqd unstoppable.
 void print_error(const std::string& what) {
-  std::fprintf(stderr, "exodaqd: %s\n", what.c_str());
+  exodaq::daemon::write_stderr("exodaqd: " + what + "\n");
 }
 
 // The first option in argv the app does not have ("" when none), found

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <climits>
+#include <cmath>
 #include <cstring>
 #include <random>
 
@@ -145,6 +146,21 @@ Acquisition::SourceCounters Acquisition::source_counters() const noexcept {
   return c;
 }
 
+// The joint that moved most from the sample before the new segment to its first.
+void Acquisition::push_segment_event(const std::array<double, kJointCount>& before) noexcept {
+  LogEvent e;
+  e.kind = LogEvent::Kind::kNewSegment;
+  e.seq = seq_;
+  for (std::size_t i = 0; i < before.size(); ++i) {
+    const double jump = result_.joints[i].position_rad - before[i];
+    if (e.joint < 0 || std::fabs(jump) > std::fabs(e.value)) {
+      e.joint = static_cast<int>(i);
+      e.value = jump;
+    }
+  }
+  events_.push(e);
+}
+
 void Acquisition::push_event(LogEvent::Kind kind) noexcept {
   LogEvent e;
   e.kind = kind;
@@ -168,6 +184,7 @@ void Acquisition::thread_main() noexcept {
     const std::int64_t wake = time_base_->now();
     if (!run_wake(deadline, wake, true)) break;
     const std::int64_t end = time_base_->now();
+    const std::int64_t lateness = wake - deadline;
     deadline += period;
     // Overrun: skip to the next deadline still ahead instead of bursting
     // through the missed ones. Sync master: their seq numbers are counted, not
@@ -175,20 +192,24 @@ void Acquisition::thread_main() noexcept {
     // meanwhile wait in the source and come with the next wakes' backlog.
     if (const std::int64_t missed = time_base_->overrun(end, deadline); missed > 0) {
       deadline += missed * period;
-      count_overrun(missed, end - wake);
+      count_overrun(missed, lateness, end - wake);
     }
   }
   finished_.store(true, std::memory_order_release);
 }
 
-void Acquisition::count_overrun(std::int64_t missed, std::int64_t work_ns) noexcept {
+// The wake's lateness and the cycle's work travel apart: a late wake, not a
+// long cycle, is the usual cause (docs/operations.md, "Overruns").
+void Acquisition::count_overrun(std::int64_t missed, std::int64_t lateness_ns,
+                                std::int64_t work_ns) noexcept {
   if (!source_->free_running()) seq_ += missed;
   overruns_.fetch_add(missed, std::memory_order_relaxed);
   LogEvent e;
   e.kind = LogEvent::Kind::kOverrun;
   e.seq = seq_;
   e.count = missed;
-  e.value = static_cast<double>(work_ns) / 1000.0;
+  e.value = static_cast<double>(lateness_ns) / 1000.0;
+  e.work_us = static_cast<double>(work_ns) / 1000.0;
   events_.push(e);
 }
 
@@ -242,9 +263,17 @@ void Acquisition::publish_sample(std::int64_t deadline_ns, std::int64_t wake_ns,
   }
   if (foreign_run_id_.load(std::memory_order_relaxed) != 0)
     flags |= drivers::sample_flag::kForeignRun;
+  const bool new_segment = segment_pending_;
+  std::array<double, kJointCount> before{};
+  if (new_segment) {
+    flags |= drivers::sample_flag::kNewSegment;
+    segment_pending_ = false;
+    for (std::size_t i = 0; i < before.size(); ++i) before[i] = result_.joints[i].position_rad;
+  }
 
   pipeline_.process(sample_, flags, time.clock_invalid, result_);
   result_.seq = seq_;
+  if (new_segment) push_segment_event(before);
   result_.mono_ns = sample_.mono_ns;
   last_emitted_mono_ns_ = sample_.mono_ns;
   result_.utime_us = time.utime_us;
@@ -275,6 +304,7 @@ void Acquisition::apply_staged_reload() noexcept {
   ++reloads_;
   status_.use_files(staged->files, reloads_);
   if (staged->clock) time_base_->set_policy(*staged->clock);
+  segment_pending_ = segment_pending_ || staged->new_segment;
   push_event(LogEvent::Kind::kReloadApplied);
 }
 
@@ -346,18 +376,23 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   end.utime_correction_ns = time_base_->utime_correction_ns();
   end.clock_steps = time_base_->clock_steps();
   end.foreign_run_id = foreign_run_id_.load(std::memory_order_relaxed);
+  end.log_lines_dropped = log_lines_dropped_.load(std::memory_order_relaxed);
 
   const ServiceState previous = state_.load(std::memory_order_relaxed);
   const ServiceState next = status_.close_window(previous, end);
+  state_reason_.store(status_.cause().reason, std::memory_order_relaxed);
+  homed_joints_.store(status_.homed(), std::memory_order_relaxed);
   if (next != previous) {
     state_.store(next, std::memory_order_relaxed);
     LogEvent e;
     e.kind = LogEvent::Kind::kStateChange;
     e.seq = seq_;
     e.state = next;
+    e.cause = status_.cause();
     events_.push(e);
   }
-  publish_encoded(publisher_, msg::Kind::kStatus, status_.message(), status_.message().utime);
+  last_status_seq_.store(end.seq, std::memory_order_release);
+  publish_encoded(publisher_, status_.message(), status_.message().utime);
   publisher_.notify();
 }
 

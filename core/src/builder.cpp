@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 
 namespace exodaq::core {

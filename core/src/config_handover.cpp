@@ -24,7 +24,14 @@ const PipelineConfig* ConfigHandover::take_staged() noexcept {
 
 void ConfigHandover::stage(std::unique_ptr<PipelineConfig> next) noexcept {
   delete retired_.exchange(nullptr);
-  delete staged_.exchange(next.release(), std::memory_order_acq_rel);
+  // One staged before and never taken: the loop goes from the active
+  // configuration straight to `next`, so `next` starts the segment the
+  // skipped one would have started.
+  if (PipelineConfig* skipped = staged_.exchange(nullptr, std::memory_order_acq_rel)) {
+    next->new_segment = next->new_segment || skipped->new_segment;
+    delete skipped;
+  }
+  staged_.store(next.release(), std::memory_order_release);
 }
 
 }  // namespace exodaq::core

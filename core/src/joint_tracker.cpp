@@ -4,18 +4,12 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "exodaq/drivers/can_codec.hpp"
+#include "exodaq/common/count16.hpp"
 
 namespace exodaq::core {
 
 namespace {
 constexpr double kTwoPi = 6.283185307179586;
-
-// The signed 16-bit step from the low 16 bits of `previous` to `raw`.
-std::int64_t step16(std::int64_t previous, std::uint16_t raw) noexcept {
-  const auto prev16 = static_cast<std::uint16_t>(previous & 0xFFFF);
-  return static_cast<std::int16_t>(static_cast<std::uint16_t>(raw - prev16));
-}
 
 std::int64_t round_div(std::int64_t num, std::int64_t den) noexcept {
   return static_cast<std::int64_t>(
@@ -208,7 +202,7 @@ JointEvent JointTracker::update(std::int64_t t_ns, int board_seq, bool fresh, st
     if (event == JointEvent::kNone) event = JointEvent::kStale;
   }
   if (index_valid && have_count_) {
-    const std::int64_t index_count = count_ + step16(count_, index_count16);
+    const std::int64_t index_count = unwrap16(count_, index_count16);
     if (homing_ != HomingState::kHomed) {
       home_on_index(index_count, event);
     } else {
@@ -225,8 +219,8 @@ std::int64_t JointTracker::interval_since_fresh(std::int64_t t_ns, int board_seq
   // of the two bounds the motion: a forward step of 1..127 board cycles.
   const std::int64_t received = t_ns - last_fresh_ns_;
   if (config_.board_period_ns <= 0 || board_seq < 0 || last_fresh_board_seq_ < 0) return received;
-  const int cycles = drivers::can::seq_delta(static_cast<std::uint8_t>(last_fresh_board_seq_),
-                                             static_cast<std::uint8_t>(board_seq));
+  const int cycles = seq_delta(static_cast<std::uint8_t>(last_fresh_board_seq_),
+                               static_cast<std::uint8_t>(board_seq));
   return std::max(received, cycles > 0 ? cycles * config_.board_period_ns : 0);
 }
 
@@ -235,14 +229,14 @@ void JointTracker::take_count(std::int64_t t_ns, int board_seq, std::uint16_t co
   if (!have_count_) {
     have_count_ = true;
     if (resume_pending_) {
-      count_ = resume_count_ + step16(resume_count_, count16);
+      count_ = unwrap16(resume_count_, count16);
       resume_pending_ = false;
     } else {
       count_ = count16;
       powerup_count_ = count_;
     }
   } else {
-    const std::int64_t step = step16(count_, count16);
+    const std::int64_t step = unwrap16(count_, count16) - count_;
     const double dt_s = static_cast<double>(interval_since_fresh(t_ns, board_seq)) * 1e-9;
     // The most counts the joint can physically produce since the last fresh
     // count, plus one count of quantisation.

@@ -1,11 +1,13 @@
 #include "exodaq/core/status_assembler.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
 #include <vector>
 
 #include "exodaq/core/publisher.hpp"
+#include "exodaq/messages/flag_names.hpp"
 
 namespace exodaq::core {
 
@@ -43,6 +45,7 @@ void StatusAssembler::use_files(const ConfigFiles& files, std::int32_t reloads) 
     // Within the reserved capacity (a longer one is cut, never reallocated).
     to[i].first->assign(*from[i], 0, to[i].second);
   }
+  restart_pending_ = files.restart_pending;
   status_.reloads = reloads;
 }
 
@@ -66,9 +69,11 @@ void StatusAssembler::count_cycle(const CycleResult& result, bool present, bool 
     ++facts_.samples_present;
     last_sample_wake_ns_ = wake_ns;
   }
+  if (window_start_ns_ == 0) window_start_ns_ = wake_ns;
   if (result.valid) ++facts_.valid_poses;
   facts_.clock_hold = facts_.clock_hold || clock_hold;
   facts_.sample_flags_or |= result.sample_flags;
+  if ((result.sample_flags & drivers::sample_flag::kNewSegment) != 0) segment_seq_ = result.seq;
   for (int i = 0; i < kJointCount; ++i) {
     facts_.joint_flags_or[static_cast<std::size_t>(i)] |=
         result.joints[static_cast<std::size_t>(i)].flags;
@@ -91,6 +96,9 @@ ServiceState StatusAssembler::close_window(ServiceState current, const WindowEnd
   const std::int64_t since_sample_ms =
       last_sample_wake_ns_ == 0 ? 0 : (end.now_mono_ns - last_sample_wake_ns_) / 1'000'000;
   const ServiceState next = state_machine_.next(current, facts_, since_sample_ms);
+  cause_ = state_machine_.cause();
+  cause_.window_ns = window_start_ns_ != 0 ? end.now_mono_ns - window_start_ns_ : 0;
+  window_start_ns_ = end.now_mono_ns;
 
   status_.utime = end.utime_us;
   status_.mono_ns = end.now_mono_ns;
@@ -106,6 +114,7 @@ ServiceState StatusAssembler::close_window(ServiceState current, const WindowEnd
   lateness_.clear();
   work_.clear();
   facts_ = WindowFacts{};
+  segment_seq_ = -1;
   return next;
 }
 
@@ -150,7 +159,6 @@ void StatusAssembler::fill_counters(const WindowEnd& end) noexcept {
 }
 
 void StatusAssembler::fill_joints_and_text(ServiceState state, const WindowEnd& end) noexcept {
-  const std::int64_t overruns = end.overruns;
   status_t& s = status_;
   int homed = 0;
   int worst_joint = -1;
@@ -167,34 +175,66 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, const WindowEnd& 
     const std::uint32_t faults = flags & joint_flag::kFaults & ~joint_flag::kUnhomed;
     if (faults != 0 && worst_joint < 0) worst_joint = i;
   }
+  homed_ = homed;
   // One line for people: snprintf into a stack buffer, assigned within the
-  // reserved capacity.
+  // reserved capacity. "DEGRADED: <cause>; 6/6 homed, ..."
   char text[256];  // status_t.message: at most 255 characters
+  constexpr int cap = static_cast<int>(sizeof(text));
+  int n = 0;
+  // Appends what snprintf wrote, never past the buffer (a cut text stays a text).
+  const auto add = [&](int written) { n = std::min(n + std::max(written, 0), cap - 1); };
+  const auto rest = [&] { return static_cast<std::size_t>(cap - n); };
+  const std::string_view name = msg::state_name(static_cast<std::int8_t>(state));
+  add(std::snprintf(text, sizeof(text), "%.*s: ", static_cast<int>(name.size()), name.data()));
+  if (cause_.reason != StateReason::kNone) {
+    const std::string_view joint =
+        cause_.joint >= 0 ? std::string_view(s.joint_name[cause_.joint]) : std::string_view();
+    add(static_cast<int>(describe_cause(cause_, joint, text + n, rest())));
+    add(std::snprintf(text + n, rest(), "; "));
+  }
   // The final status may cover no cycle (docs/messages.md, status_t.seq).
   char valid[40] = "no cycle since the last status";
   if (facts_.cycles > 0) {
     std::snprintf(valid, sizeof(valid), "%.1f%% valid",
                   100.0 * facts_.valid_poses / static_cast<double>(facts_.cycles));
   }
-  int n = std::snprintf(text, sizeof(text), "%s: %d/%d homed, %s, %lld overruns", state_name(state),
-                        homed, kJointCount, valid, static_cast<long long>(overruns));
-  if (worst_joint >= 0 && n > 0 && n < static_cast<int>(sizeof(text))) {
-    n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
-                       "; joint %s flags 0x%x", s.joint_name[worst_joint].c_str(),
-                       facts_.joint_flags_or[static_cast<std::size_t>(worst_joint)]);
+  add(std::snprintf(text + n, rest(), "%d/%d homed, %s, %lld overruns since start", homed,
+                    kJointCount, valid, static_cast<long long>(end.overruns)));
+  if (worst_joint >= 0 && cause_.reason != StateReason::kJointFault) {
+    char flags[192];
+    msg::write_joint_flag_names(
+        static_cast<std::int32_t>(facts_.joint_flags_or[static_cast<std::size_t>(worst_joint)]),
+        flags, sizeof flags);
+    add(std::snprintf(text + n, rest(), "; joint %s %s", s.joint_name[worst_joint].c_str(), flags));
   }
-  if ((facts_.sample_flags_or & drivers::sample_flag::kClockUnsync) != 0 && n > 0 &&
-      n < static_cast<int>(sizeof(text))) {
-    n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
-                       "; clock unsynchronised");
+  if ((facts_.sample_flags_or & drivers::sample_flag::kClockUnsync) != 0) {
+    add(std::snprintf(text + n, rest(), "; clock unsynchronised"));
   }
-  if (s.foreign_run_id != 0 && n > 0 && n < static_cast<int>(sizeof(text))) {
-    n += std::snprintf(text + n, sizeof(text) - static_cast<std::size_t>(n),
-                       "; ANOTHER RUN %016llx on these channels",
-                       static_cast<unsigned long long>(s.foreign_run_id));
+  if (s.foreign_run_id != 0) {
+    add(std::snprintf(text + n, rest(), "; ANOTHER RUN %016llx on these channels",
+                      static_cast<unsigned long long>(s.foreign_run_id)));
   }
-  append_publish_text(text, n, static_cast<int>(sizeof(text)), state, end);
+  n = append_service_text(text, n, cap, end);
+  append_publish_text(text, n, cap, state, end);
   s.message.assign(text);
+}
+
+// A new segment in the window, a reload waiting for a restart, log lines lost.
+int StatusAssembler::append_service_text(char* text, int n, int cap,
+                                         const WindowEnd& end) const noexcept {
+  const auto rest = [&] { return n > 0 && n < cap ? static_cast<std::size_t>(cap - n) : 0; };
+  if (segment_seq_ >= 0 && rest() > 0) {
+    n += std::snprintf(text + n, rest(), "; new segment from seq %lld (calibration or model)",
+                       static_cast<long long>(segment_seq_));
+  }
+  if (restart_pending_ && rest() > 0) {
+    n += std::snprintf(text + n, rest(), "; restart pending: config not in effect as a whole");
+  }
+  if (end.log_lines_dropped > 0 && rest() > 0) {
+    n += std::snprintf(text + n, rest(), "; %lld log lines dropped",
+                       static_cast<long long>(end.log_lines_dropped));
+  }
+  return n;
 }
 
 // A failing publish path (since which seq, how many lost, why); after it

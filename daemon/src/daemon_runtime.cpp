@@ -1,20 +1,22 @@
 #include "exodaq/daemon/daemon_runtime.hpp"
 
 #include <signal.h>
-#include <spdlog/async.h>
 #include <spdlog/cfg/env.h>
 #include <spdlog/sinks/base_sink.h>
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
+#include <string.h>
 #include <sys/stat.h>
 #include <sys/uio.h>
 #include <syslog.h>
 #include <systemd/sd-daemon.h>
 #include <systemd/sd-journal.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
@@ -31,8 +33,11 @@
 #include "exodaq/core/builder.hpp"
 #include "exodaq/daemon/instance_guard.hpp"
 #include "exodaq/drivers/backend.hpp"
+#include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/message.hpp"
 #include "exodaq/version.hpp"
+#include "log_output.hpp"
+#include "overrun_report.hpp"
 #include "publish_watch.hpp"
 
 namespace exodaq::daemon {
@@ -87,23 +92,89 @@ int syslog_priority(spdlog::level::level_enum level) {
   }
 }
 
+// A sink that formats on the thread that logs and hands the record to the
+// LogOutput (log_output.hpp): logging never waits for the output. Lines the
+// output dropped while it stalled are noted by a warning before the first
+// line that fits again. Control characters in a message (a foreign rig's
+// line break or ESC) are escaped: one record, one line.
+class QueuedSink : public spdlog::sinks::base_sink<std::mutex> {
+ public:
+  explicit QueuedSink(std::shared_ptr<LogOutput> output) : output_(std::move(output)) {}
+
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    if (const std::int64_t lost = output_->unreported_drops(); lost > 0 && output_->has_room(2)) {
+      const std::string text =
+          fmt::format("log output stalled: {} line(s) dropped ({} since start)", lost,
+                      output_->counts().dropped) +
+          kFieldSep + "EXODAQ_EVENT=log_dropped" + kFieldSep +
+          "EXODAQ_DROPPED=" + std::to_string(lost);
+      const spdlog::details::log_msg notice(msg.time, spdlog::source_loc{}, msg.logger_name,
+                                            spdlog::level::warn, text);
+      if (output_->push(record(notice))) output_->note_reported(lost);
+    }
+    output_->push(record(msg));
+  }
+  void flush_() override {}
+  // What the output thread gets for `msg`.
+  virtual LogRecord record(const spdlog::details::log_msg& msg) = 0;
+
+  // The message text, without the journal fields, escaped.
+  static std::string text_of(const spdlog::details::log_msg& msg) {
+    const std::string_view payload(msg.payload.data(), msg.payload.size());
+    return msg::printable(payload.substr(0, payload.find(kFieldSep)));
+  }
+
+ private:
+  std::shared_ptr<LogOutput> output_;
+};
+
 // The native journal protocol, with the fields carried in the payload
 // (EXODAQ_STATE, EXODAQ_JOINT, EXODAQ_EVENT, EXODAQ_SEQ, EXODAQ_RUN_ID ...), so
 // `journalctl -u exodaqd EXODAQ_JOINT=elbow` finds one joint's events. Every
 // entry names the rig (EXODAQ_RIG: `journalctl EXODAQ_RIG=rig-b`).
-class JournalFieldSink final : public spdlog::sinks::base_sink<std::mutex> {
+class JournalFieldSink final : public QueuedSink {
  public:
-  explicit JournalFieldSink(const std::string& rig) : rig_field_("EXODAQ_RIG=" + rig) {}
+  using QueuedSink::QueuedSink;
+
+  // On the output thread: one record to journald, or to stderr when there is
+  // no journald (a container, an early boot).
+  static LogOutput::Write writer(const std::string& rig, std::shared_ptr<StderrWriter> err) {
+    return [rig_field = "EXODAQ_RIG=" + rig, err = std::move(err)](
+               const LogRecord& r, const std::function<bool()>& give_up) {
+      std::vector<std::string> items = journal_items(r, rig_field);
+      std::vector<iovec> iov(items.size());
+      for (std::size_t i = 0; i < items.size(); ++i) {
+        iov[i].iov_base = items[i].data();
+        iov[i].iov_len = items[i].size();
+      }
+      // (parenthesised: the macro would add this line as CODE_FILE/CODE_LINE)
+      if ((sd_journal_sendv)(iov.data(), static_cast<int>(iov.size())) >= 0) {
+        return StderrWriter::Result::kWritten;
+      }
+      return err->write("exodaqd: " + items[0].substr(8) + "\n", give_up);
+    };
+  }
 
  protected:
-  void sink_it_(const spdlog::details::log_msg& msg) override {
+  LogRecord record(const spdlog::details::log_msg& msg) override {
     const std::string_view payload(msg.payload.data(), msg.payload.size());
+    const std::size_t cut = payload.find(kFieldSep);
+    std::string text = text_of(msg);
+    if (cut != std::string_view::npos) text.append(payload.substr(cut));
+    return {static_cast<int>(msg.level), std::move(text)};
+  }
+
+ private:
+  static std::vector<std::string> journal_items(const LogRecord& r, const std::string& rig_field) {
+    const std::string_view payload(r.text);
     std::vector<std::string> items;
     std::size_t cut = payload.find(kFieldSep);
     items.push_back("MESSAGE=" + std::string(payload.substr(0, cut)));
-    items.push_back("PRIORITY=" + std::to_string(syslog_priority(msg.level)));
+    items.push_back("PRIORITY=" + std::to_string(syslog_priority(
+                                      static_cast<spdlog::level::level_enum>(r.level))));
     items.emplace_back("SYSLOG_IDENTIFIER=exodaqd");
-    items.push_back(rig_field_);
+    items.push_back(rig_field);
     while (cut != std::string_view::npos) {
       const std::size_t next = payload.find(kFieldSep, cut + 1);
       const auto field = payload.substr(
@@ -111,75 +182,97 @@ class JournalFieldSink final : public spdlog::sinks::base_sink<std::mutex> {
       if (!field.empty()) items.emplace_back(field);
       cut = next;
     }
-    std::vector<iovec> iov(items.size());
-    for (std::size_t i = 0; i < items.size(); ++i) {
-      iov[i].iov_base = items[i].data();
-      iov[i].iov_len = items[i].size();
-    }
-    // (parenthesised: the macro would add this line as CODE_FILE/CODE_LINE)
-    if ((sd_journal_sendv)(iov.data(), static_cast<int>(iov.size())) < 0) {
-      // No journald (a container, an early boot): the text still goes somewhere.
-      std::fprintf(stderr, "exodaqd: %s\n", items[0].c_str() + 8);
-    }
+    return items;
   }
-  void flush_() override {}
-
- private:
-  std::string rig_field_;
 };
 
-// stderr, without the structured fields.
-class StderrSink final : public spdlog::sinks::base_sink<std::mutex> {
+// stderr, without the structured fields; the level coloured on a terminal.
+class StderrSink final : public QueuedSink {
  public:
-  StderrSink() : inner_(std::make_shared<spdlog::sinks::stderr_color_sink_st>()) {}
-  void set_inner_pattern(const std::string& pattern) { inner_->set_pattern(pattern); }
+  StderrSink(std::shared_ptr<LogOutput> output, bool colour)
+      : QueuedSink(std::move(output)), colour_(colour) {}
 
  protected:
-  void sink_it_(const spdlog::details::log_msg& msg) override {
+  LogRecord record(const spdlog::details::log_msg& msg) override {
+    const std::string text = text_of(msg);
     spdlog::details::log_msg copy = msg;
-    const std::string_view payload(msg.payload.data(), msg.payload.size());
-    const std::size_t cut = payload.find(kFieldSep);
-    if (cut != std::string_view::npos)
-      copy.payload = spdlog::string_view_t(msg.payload.data(), cut);
-    inner_->log(copy);
+    copy.payload = spdlog::string_view_t(text.data(), text.size());
+    spdlog::memory_buf_t line;
+    formatter_->format(copy, line);
+    std::string out(line.data(), line.size());
+    if (colour_ && copy.color_range_end > copy.color_range_start) {
+      out.insert(copy.color_range_end, "\033[m");
+      out.insert(copy.color_range_start, level_colour(msg.level));
+    }
+    return {static_cast<int>(msg.level), std::move(out)};
   }
-  void flush_() override { inner_->flush(); }
 
  private:
-  std::shared_ptr<spdlog::sinks::stderr_color_sink_st> inner_;
+  static const char* level_colour(spdlog::level::level_enum level) {
+    switch (level) {
+      case spdlog::level::trace:
+        return "\033[37m";
+      case spdlog::level::debug:
+        return "\033[36m";
+      case spdlog::level::info:
+        return "\033[32m";
+      case spdlog::level::warn:
+        return "\033[33m\033[1m";
+      case spdlog::level::err:
+        return "\033[31m\033[1m";
+      case spdlog::level::critical:
+        return "\033[1m\033[41m";
+      default:
+        return "";
+    }
+  }
+  bool colour_;
 };
 
 struct Logging {
   std::shared_ptr<spdlog::logger> logger;
+  std::shared_ptr<LogOutput> output;
   bool journal = false;
 };
 
-// spdlog, asynchronous: the loop thread never logs, and the main thread's
-// logging never waits on the journal or a terminal. Level: the config, then
+// The time the log gets at exit to write what is queued (docs/operations.md:
+// SIGTERM ends exodaqd within 5 s whatever its output does).
+constexpr std::chrono::milliseconds kLogDrain{1000};
+
+// spdlog, through the LogOutput: neither the main thread nor the listener
+// ever waits on the journal or a terminal. Level: the config, then
 // SPDLOG_LEVEL, then --log-level. Every line names the rig (several daemons
 // may share a host and a terminal).
 Logging make_logger(const LoggingSettings& settings, const std::string& level_override,
                     const std::string& rig) {
-  spdlog::init_thread_pool(8192, 1);
   Logging out;
   out.journal = settings.sink == "journal" || (settings.sink == "auto" && stderr_is_journal());
+  auto err = std::make_shared<StderrWriter>();
   spdlog::sink_ptr sink;
   if (out.journal) {
-    sink = std::make_shared<JournalFieldSink>(rig);
+    out.output = std::make_shared<LogOutput>(JournalFieldSink::writer(rig, err));
+    sink = std::make_shared<JournalFieldSink>(out.output);
   } else {
-    auto err = std::make_shared<StderrSink>();
+    out.output = std::make_shared<LogOutput>(
+        [err](const LogRecord& r, const std::function<bool()>& give_up) {
+          return err->write(r.text, give_up);
+        });
     std::string rig_text;  // literal in the pattern: '%' doubled
-    for (const char c : rig) rig_text += c == '%' ? std::string("%%") : std::string(1, c);
-    err->set_inner_pattern("%Y-%m-%d %H:%M:%S.%e [" + rig_text + "] %^%l%$ %v");
-    sink = err;
+    for (const char c : msg::printable(rig))
+      rig_text += c == '%' ? std::string("%%") : std::string(1, c);
+    sink = std::make_shared<StderrSink>(out.output, isatty(STDERR_FILENO) != 0);
+    sink->set_pattern("%Y-%m-%d %H:%M:%S.%e [" + rig_text + "] %^%l%$ %v");
   }
-  out.logger = std::make_shared<spdlog::async_logger>(
-      "exodaqd", sink, spdlog::thread_pool(), spdlog::async_overflow_policy::overrun_oldest);
+  out.logger = std::make_shared<spdlog::logger>("exodaqd", sink);
+  // spdlog's own complaint (a bad format) must not wait on stderr either.
+  out.logger->set_error_handler([](const std::string& what) {
+    write_stderr("exodaqd: log error: " + msg::printable(what) + "\n",
+                 std::chrono::milliseconds(0));
+  });
   spdlog::set_default_logger(out.logger);
   spdlog::set_level(spdlog::level::from_str(settings.level));
   spdlog::cfg::load_env_levels();  // SPDLOG_LEVEL overrides the file
   if (!level_override.empty()) spdlog::set_level(spdlog::level::from_str(level_override));
-  spdlog::flush_every(std::chrono::seconds(1));
   return out;
 }
 
@@ -240,10 +333,33 @@ const char* joint_event_id(JointEvent e) {
   return "none";
 }
 
+// Overruns as rate-limited lines (overrun_report.hpp), with their journal fields.
+void log_overruns(const OverrunLine& line, ServiceState state, std::int64_t run_id) {
+  spdlog::warn("{}{}", line.text(),
+               fields({{"EXODAQ_EVENT", "overrun"},
+                       {"EXODAQ_STATE", state_name(state)},
+                       {"EXODAQ_SEQ", std::to_string(line.last_seq)},
+                       {"EXODAQ_OVERRUNS", std::to_string(line.skipped)},
+                       {"EXODAQ_LATE_WAKES", std::to_string(line.late_wakes)},
+                       {"EXODAQ_WORST_LATENESS_US", fmt::format("{:.1f}", line.worst_lateness_us)},
+                       {"EXODAQ_RUN_ID", msg::run_id_text(run_id)}}));
+}
+
+// Why the state changed, for people (core::describe_cause).
+std::string cause_text(const StateCause& cause, const AcquisitionConfig& ac) {
+  char text[256];
+  const std::string_view joint =
+      cause.joint >= 0 && cause.joint < kJointCount
+          ? std::string_view(ac.joint_names[static_cast<std::size_t>(cause.joint)])
+          : std::string_view();
+  return {text, describe_cause(cause, joint, text, sizeof text)};
+}
+
 // One loop event, logged on the main thread with its journal fields.
-// `state`: the service state when the event was drained.
+// `state`: the service state when the event was drained; overruns go through
+// `overruns` (at most one line per 10 s), each one also at debug level.
 void log_event(const LogEvent& e, const AcquisitionConfig& ac, std::int64_t run_id,
-               ServiceState state) {
+               ServiceState state, OverrunReport& overruns) {
   const std::string seq = std::to_string(e.seq);
   const std::string run = msg::run_id_text(run_id);
   switch (e.kind) {
@@ -270,12 +386,11 @@ void log_event(const LogEvent& e, const AcquisitionConfig& ac, std::int64_t run_
       break;
     }
     case LogEvent::Kind::kOverrun:
-      spdlog::warn("loop overrun at seq {}: cycle took {:.1f} us, {} deadline(s) skipped{}", e.seq,
-                   e.value, e.count,
-                   fields({{"EXODAQ_EVENT", "overrun"},
-                           {"EXODAQ_STATE", state_name(state)},
-                           {"EXODAQ_SEQ", seq},
-                           {"EXODAQ_RUN_ID", run}}));
+      spdlog::debug(
+          "loop overrun at seq {}: the wake was {:.1f} us late, the cycle's work {:.1f} us; {} "
+          "deadline(s) skipped",
+          e.seq, e.value, e.work_us, e.count);
+      if (const auto line = overruns.add(e, mono_now_ns())) log_overruns(*line, state, run_id);
       break;
     case LogEvent::Kind::kClockStep:
       spdlog::warn(
@@ -288,14 +403,17 @@ void log_event(const LogEvent& e, const AcquisitionConfig& ac, std::int64_t run_
                   {"EXODAQ_RUN_ID", run}}));
       break;
     case LogEvent::Kind::kStateChange: {
-      const std::string f = fields({{"EXODAQ_EVENT", "state"},
-                                    {"EXODAQ_STATE", state_name(e.state)},
-                                    {"EXODAQ_SEQ", seq},
-                                    {"EXODAQ_RUN_ID", run}});
+      const bool why = e.cause.reason != StateReason::kNone;
+      std::string f = fields({{"EXODAQ_EVENT", "state"},
+                              {"EXODAQ_STATE", state_name(e.state)},
+                              {"EXODAQ_SEQ", seq},
+                              {"EXODAQ_RUN_ID", run}});
+      if (why) f += fields({{"EXODAQ_REASON", std::string(reason_name(e.cause.reason))}});
+      const std::string cause = why ? ": " + cause_text(e.cause, ac) : std::string();
       if (e.state == ServiceState::kFault || e.state == ServiceState::kDegraded) {
-        spdlog::warn("service state: {} (seq {}){}", state_name(e.state), e.seq, f);
+        spdlog::warn("service state: {} (seq {}){}{}", state_name(e.state), e.seq, cause, f);
       } else {
-        spdlog::info("service state: {} (seq {}){}", state_name(e.state), e.seq, f);
+        spdlog::info("service state: {} (seq {}){}{}", state_name(e.state), e.seq, cause, f);
       }
       break;
     }
@@ -304,6 +422,19 @@ void log_event(const LogEvent& e, const AcquisitionConfig& ac, std::int64_t run_
           "new configuration in effect from seq {}{}", e.seq,
           fields({{"EXODAQ_EVENT", "reload"}, {"EXODAQ_SEQ", seq}, {"EXODAQ_RUN_ID", run}}));
       break;
+    case LogEvent::Kind::kNewSegment: {
+      const auto& name = ac.joint_names[static_cast<std::size_t>(std::max(e.joint, 0))];
+      spdlog::warn(
+          "new segment from seq {}: the calibration or model changed, joint {} moved {:.3f} deg "
+          "from the sample before; the first sample is flagged NEW_SEGMENT (do not difference or "
+          "filter across it){}",
+          e.seq, name, e.value * 57.29577951308232,
+          fields({{"EXODAQ_EVENT", "new_segment"},
+                  {"EXODAQ_JOINT", name},
+                  {"EXODAQ_SEQ", seq},
+                  {"EXODAQ_RUN_ID", run}}));
+      break;
+    }
     case LogEvent::Kind::kEndOfStream:
       spdlog::info("source ended at seq {}", e.seq);
       break;
@@ -328,66 +459,85 @@ const char* bus_state_text(drivers::BusState s) {
   return "";
 }
 
-// STATUS= for systemctl status: state, loop rate, drops, clock health.
-std::string status_line(Acquisition& acq, double rate_hz) {
+// The state, why, and the homing progress: "homing 4/6", "degraded (OVERRUNS)",
+// "fault (NO_SAMPLES), 4/6 homed", "running".
+std::string state_text(const Acquisition& acq) {
+  const ServiceState state = acq.state();
+  const int homed = acq.homed_joints();
+  const std::string progress = std::to_string(homed) + "/" + std::to_string(kJointCount);
+  if (state == ServiceState::kHoming) return "homing " + progress;
+  std::string out = state_name(state);
+  if (const StateReason why = acq.state_reason(); why != StateReason::kNone)
+    out += " (" + std::string(reason_name(why)) + ")";
+  if (homed < kJointCount && state != ServiceState::kStarting) out += ", " + progress + " homed";
+  return out;
+}
+
+// The clock as the policy sees it: under require_sync: ignore it is not checked.
+const char* clock_text(const ClockShared& clock, config::RequireSync policy) {
+  if (policy == config::RequireSync::kIgnore) return "clock not checked";
+  if (!clock.health_valid.load()) return "clock health unknown";
+  return clock.synchronised.load() ? "clock synchronised" : "clock UNSYNCHRONISED";
+}
+
+// STATUS= for systemctl status: state and homing, loop rate, drops, clock
+// health under `policy`, and the log lines the output lost.
+std::string status_line(Acquisition& acq, double rate_hz, config::RequireSync policy,
+                        std::int64_t log_dropped = 0) {
   const auto stats = acq.source_counters();
-  const ClockShared& clock = acq.clock_shared();
-  const char* clock_text = !clock.health_valid.load()  ? "clock health unknown"
-                           : clock.synchronised.load() ? "clock synchronised"
-                                                       : "clock UNSYNCHRONISED";
   const PublishHealth publish = acq.publisher().health();
-  char text[320];
-  std::snprintf(text, sizeof(text),
-                "STATUS=%s, %.1f Hz, cycle %" PRId64 "; drops: %" PRId64
-                " missing samples, %" PRId64 " seq gaps, %" PRId64 " overruns, %" PRId64
-                " publish failures; %" PRId64 " bus errors%s; %s",
-                state_name(acq.state()), rate_hz, acq.cycles(), stats.missing_samples,
-                stats.seq_gaps, acq.overruns(), publish.failures + publish.ring_drops,
-                stats.bus_errors, bus_state_text(stats.bus_state), clock_text);
-  return text + PublishWatch::status_text(publish);
+  char text[384];
+  std::snprintf(
+      text, sizeof(text),
+      "STATUS=%s, %.1f Hz, cycle %" PRId64 "; drops: %" PRId64 " missing samples, %" PRId64
+      " seq gaps, %" PRId64 " overruns, %" PRId64 " publish failures; %" PRId64 " bus errors%s; %s",
+      state_text(acq).c_str(), rate_hz, acq.cycles(), stats.missing_samples, stats.seq_gaps,
+      acq.overruns(), publish.failures + publish.ring_drops, stats.bus_errors,
+      bus_state_text(stats.bus_state), clock_text(acq.clock_shared(), policy));
+  std::string line = text + PublishWatch::status_text(publish);
+  if (log_dropped > 0) line += "; " + std::to_string(log_dropped) + " log lines dropped";
+  return line;
 }
 
 void notify(const std::string& text) {
   sd_notify(0, text.c_str());
 }
 
+// Every signal that would end or stop the process by its default action is
+// blocked and taken by the supervisor (sigtimedwait), except the program
+// errors (SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT), whose core dump is the
+// evidence, and SIGKILL/SIGSTOP, which cannot be. docs/operations.md, "Signals".
+// SIGTERM, SIGINT and SIGQUIT (Ctrl-\) stop; SIGHUP reloads.
+constexpr int kStopSignals[] = {SIGTERM, SIGINT, SIGQUIT};
+// Job control (Ctrl-Z, a background read or write on the terminal) would
+// stop the loop: refused and logged. Blocked, SIGTTOU also lets a background
+// exodaqd write to its terminal.
+constexpr int kJobControlSignals[] = {SIGTSTP, SIGTTIN, SIGTTOU};
 // Signals that mean nothing to the daemon but end a process by default:
-// taken and logged, never fatal.
-constexpr int kIgnoredSignals[] = {SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPOLL, SIGPWR};
+// logged, never fatal (and SIGRTMIN..SIGRTMAX).
+constexpr int kIgnoredSignals[] = {SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGPOLL,
+                                   SIGPWR,  SIGTRAP, SIGSYS,  SIGXCPU,   SIGXFSZ, SIGSTKFLT};
 
-const char* signal_name(int sig) {
-  switch (sig) {
-    case SIGTERM:
-      return "SIGTERM";
-    case SIGINT:
-      return "SIGINT";
-    case SIGHUP:
-      return "SIGHUP";
-    case SIGUSR1:
-      return "SIGUSR1";
-    case SIGUSR2:
-      return "SIGUSR2";
-    case SIGALRM:
-      return "SIGALRM";
-    case SIGVTALRM:
-      return "SIGVTALRM";
-    case SIGPOLL:
-      return "SIGPOLL";
-    case SIGPWR:
-      return "SIGPWR";
-    default:
-      return "signal";
-  }
+bool is_one_of(int sig, const int* begin, const int* end) {
+  return std::find(begin, end, sig) != end;
+}
+
+// "SIGTERM", "SIGRTMIN+3".
+std::string signal_name(int sig) {
+  if (sig >= SIGRTMIN && sig <= SIGRTMAX) return "SIGRTMIN+" + std::to_string(sig - SIGRTMIN);
+  const char* abbrev = sigabbrev_np(sig);
+  return abbrev != nullptr ? std::string("SIG") + abbrev : "signal " + std::to_string(sig);
 }
 
 // The signals the supervisor takes with sigtimedwait().
 sigset_t daemon_signals() {
   sigset_t signals;
   sigemptyset(&signals);
-  sigaddset(&signals, SIGTERM);
-  sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGHUP);
+  for (const int sig : kStopSignals) sigaddset(&signals, sig);
+  for (const int sig : kJobControlSignals) sigaddset(&signals, sig);
   for (const int sig : kIgnoredSignals) sigaddset(&signals, sig);
+  for (int sig = SIGRTMIN; sig <= SIGRTMAX; ++sig) sigaddset(&signals, sig);
   return signals;
 }
 
@@ -404,10 +554,10 @@ std::optional<int> load_config(const DaemonOptions& options, ServiceConfig& conf
   try {
     config = load_service_config(options.config_path);
   } catch (const config::ConfigError& e) {
-    std::fprintf(stderr, "exodaqd: %s\n", e.what());
+    write_stderr("exodaqd: " + std::string(e.what()) + "\n");
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "exodaqd: %s: %s\n", options.config_path.c_str(), e.what());
+    write_stderr("exodaqd: " + options.config_path + ": " + e.what() + "\n");
     return 1;
   }
   if (options.print_config) {
@@ -424,17 +574,32 @@ std::optional<int> load_config(const DaemonOptions& options, ServiceConfig& conf
   return std::nullopt;
 }
 
+// Lines the log output lost (dropped while it stalled, refused by it).
+std::int64_t log_lines_lost(const LogOutput::Counts& c) {
+  return c.dropped + c.failed + c.unwritten;
+}
+
+// Stops the log output (what is queued gets at most kLogDrain) and says what
+// the log lost, when it lost any: in systemd's STATUS= and, if it takes it
+// at once, on stderr.
 void shut_down_logging(const Logging& logging) {
-  logging.logger->flush();
+  const LogOutput::Counts c = logging.output->stop(kLogDrain);
   spdlog::shutdown();
+  if (log_lines_lost(c) == 0) return;
+  const std::string text = fmt::format(
+      "log output: {} lines written, {} dropped while it stalled, {} refused by it, {} not "
+      "written at exit",
+      c.written, c.dropped, c.failed, c.unwritten);
+  notify("STATUS=" + text);
+  write_stderr("exodaqd: " + text + "\n", std::chrono::milliseconds(0));
 }
 
 // Why the daemon cannot start: to the log, systemd's STATUS= and stderr.
 void report_start_failure(const std::string& what, const Logging& logging) {
   spdlog::critical("cannot start: {}{}", what, fields({{"EXODAQ_EVENT", "start_failed"}}));
-  notify("STATUS=cannot start: " + what);
+  notify("STATUS=cannot start: " + msg::printable(what));
   shut_down_logging(logging);
-  if (!logging.journal) std::fprintf(stderr, "exodaqd: cannot start: %s\n", what.c_str());
+  if (!logging.journal) write_stderr("exodaqd: cannot start: " + msg::printable(what) + "\n");
 }
 
 // The channel set claimed for this daemon alone (instance_guard.hpp), or null
@@ -502,14 +667,20 @@ class Supervisor {
   // `started_ns`: when start-up began (--duration counts from there).
   // `config`: the configuration the acquisition started with.
   Supervisor(Acquisition& acq, ServiceConfig& config, const DaemonOptions& options,
-             const sigset_t& signals, std::int64_t started_ns);
+             const sigset_t& signals, std::int64_t started_ns, const Logging& logging,
+             OverrunReport& overruns);
   // Until SIGTERM/SIGINT, --duration or the end of the source.
   void run();
 
  private:
   void take_signal();
   void reload();
-  void log_changes(const ServiceConfig& next) const;
+  struct Changes {
+    std::vector<config::SettingChange> live;     // against the last configuration accepted
+    std::vector<config::SettingChange> restart;  // against the one the loop started with
+  };
+  Changes changes_to(const ServiceConfig& next) const;
+  void log_changes(const ServiceConfig& next, const Changes& changes) const;
   void log_realtime() const;
   void drain_events();
   void notify_systemd(std::int64_t now);
@@ -523,6 +694,9 @@ class Supervisor {
   const DaemonOptions& options_;
   const sigset_t& signals_;
   const std::int64_t started_ns_;
+  const Logging& logging_;
+  OverrunReport& overruns_;
+  std::int64_t log_lost_ = 0;  // lines the log output lost so far
   bool watchdog_ = false;
   std::int64_t watchdog_every_ns_ = 0;
   std::int64_t wait_ns_ = 20'000'000;
@@ -539,13 +713,16 @@ class Supervisor {
 };
 
 Supervisor::Supervisor(Acquisition& acq, ServiceConfig& config, const DaemonOptions& options,
-                       const sigset_t& signals, std::int64_t started_ns)
+                       const sigset_t& signals, std::int64_t started_ns, const Logging& logging,
+                       OverrunReport& overruns)
     : acq_(acq),
       config_(config),
       started_(config),
       options_(options),
       signals_(signals),
-      started_ns_(started_ns) {
+      started_ns_(started_ns),
+      logging_(logging),
+      overruns_(overruns) {
   // Watchdog (WatchdogSec= in the unit): ping at half the interval, and only
   // while cycles progress, so a stalled loop lets systemd's watchdog fire. A
   // loop that cycles without samples (state fault) still pings: restarting
@@ -565,6 +742,9 @@ void Supervisor::run() {
   while (running_) {
     take_signal();
     drain_events();
+    // The status channel says what the log lost (the log itself may be what stalls).
+    log_lost_ = log_lines_lost(logging_.output->counts());
+    acq_.set_log_lines_dropped(log_lost_);
     if (!realtime_logged_ && acq_.cycles() > 0) {
       log_realtime();
       realtime_logged_ = true;
@@ -596,15 +776,25 @@ void Supervisor::take_signal() {
   timespec wait{0, static_cast<long>(wait_ns_)};
   siginfo_t info{};
   const int sig = sigtimedwait(&signals_, &info, &wait);
-  if (sig == SIGTERM || sig == SIGINT) {
-    spdlog::info("{} received: stopping", signal_name(sig));
+  if (sig <= 0) return;
+  const std::string name = signal_name(sig);
+  // kill(), sigqueue(), tgkill() name the sender; the kernel (a terminal's
+  // Ctrl-Z, a resource limit) does not.
+  const std::string from = info.si_code <= 0 ? "from pid " + std::to_string(info.si_pid)
+                                             : std::string("from the kernel");
+  if (is_one_of(sig, std::begin(kStopSignals), std::end(kStopSignals))) {
+    spdlog::info("{} received: stopping", name);
     running_ = false;
   } else if (sig == SIGHUP) {
     reload();
-  } else if (sig > 0) {
-    spdlog::warn("{} received from pid {}: ignored (SIGTERM or SIGINT stop, SIGHUP reloads){}",
-                 signal_name(sig), info.si_pid,
-                 fields({{"EXODAQ_EVENT", "signal_ignored"}, {"EXODAQ_SIGNAL", signal_name(sig)}}));
+  } else if (is_one_of(sig, std::begin(kJobControlSignals), std::end(kJobControlSignals))) {
+    spdlog::warn(
+        "{} received {}: not stopping (a stopped loop loses samples; SIGTERM, SIGINT or SIGQUIT "
+        "stop exodaqd){}",
+        name, from, fields({{"EXODAQ_EVENT", "stop_refused"}, {"EXODAQ_SIGNAL", name}}));
+  } else {
+    spdlog::warn("{} received {}: ignored (SIGTERM, SIGINT or SIGQUIT stop; SIGHUP reloads){}",
+                 name, from, fields({{"EXODAQ_EVENT", "signal_ignored"}, {"EXODAQ_SIGNAL", name}}));
   }
 }
 
@@ -619,37 +809,52 @@ void Supervisor::log_realtime() const {
   }
 }
 
+// A reload applies the live settings at a cycle boundary. One that changes
+// the calibration or model starts a new segment; one that leaves restart-only
+// settings unapplied takes the file's hash out of the status: no file
+// describes the configuration in effect until a restart.
 void Supervisor::reload() {
   notify("RELOADING=1\nSTATUS=reloading " + options_.config_path);
   try {
     ServiceConfig next = load_service_config(options_.config_path);
-    acq_.stage_reload(make_pipeline_config(next), next.clock);
+    const Changes changes = changes_to(next);
+    std::unique_ptr<PipelineConfig> pipeline = make_pipeline_config(next);
+    pipeline->new_segment = config::starts_new_segment(changes.live);
+    pipeline->files.restart_pending = !changes.restart.empty();
+    if (pipeline->files.restart_pending) pipeline->files.config_sha256.clear();
+    acq_.stage_reload(std::move(pipeline), next.clock);
     if (const std::string level = configured_level(options_, next); !level.empty())
       spdlog::set_level(spdlog::level::from_str(level));
-    log_changes(next);
+    log_changes(next, changes);
     config_ = std::move(next);
   } catch (const std::exception& e) {
     spdlog::error("reload rejected, previous configuration stays: {}{}", e.what(),
                   fields({{"EXODAQ_EVENT", "reload_rejected"}}));
   }
-  notify("READY=1\n" + status_line(acq_, rate_hz_));
+  notify("READY=1\n" + status_line(acq_, rate_hz_, config_.clock.require_sync, log_lost_));
+}
+
+Supervisor::Changes Supervisor::changes_to(const ServiceConfig& next) const {
+  Changes out;
+  for (auto& c : config::compare_settings(config_, next)) {
+    if (c.apply == config::Apply::kLive) out.live.push_back(std::move(c));
+  }
+  for (auto& c : config::compare_settings(started_, next)) {
+    if (c.apply == config::Apply::kRestart) out.restart.push_back(std::move(c));
+  }
+  return out;
 }
 
 // Every reload says what it changed: the live settings against the last
 // configuration accepted (info), and, on every SIGHUP that carries one, each
 // restart-only setting whose value differs from the one running (warning).
-void Supervisor::log_changes(const ServiceConfig& next) const {
-  std::vector<config::SettingChange> live;
-  for (auto& c : config::compare_settings(config_, next)) {
-    if (c.apply == config::Apply::kLive) live.push_back(std::move(c));
-  }
-  std::vector<config::SettingChange> restart;
-  for (auto& c : config::compare_settings(started_, next)) {
-    if (c.apply == config::Apply::kRestart) restart.push_back(std::move(c));
-  }
+void Supervisor::log_changes(const ServiceConfig& next, const Changes& changes) const {
+  const auto& live = changes.live;
+  const auto& restart = changes.restart;
   if (!restart.empty()) {
     spdlog::warn(
-        "reload: {} restart-only setting(s) changed, NOT applied until exodaqd restarts: {}{}",
+        "reload: {} restart-only setting(s) changed, NOT applied until exodaqd restarts: {}; "
+        "status_t.config_sha256 is empty until then (no file describes the settings in effect){}",
         restart.size(), config::describe_changes(restart),
         fields({{"EXODAQ_EVENT", "reload_needs_restart"}}));
   }
@@ -659,6 +864,12 @@ void Supervisor::log_changes(const ServiceConfig& next) const {
                fields({{"EXODAQ_EVENT", "reload_accepted"},
                        {"EXODAQ_CONFIG_SHA256", next.config_sha256},
                        {"EXODAQ_CALIBRATION_SHA256", next.calibration_sha256}}));
+  if (config::starts_new_segment(live)) {
+    spdlog::info(
+        "reload: the calibration or model changed: the first sample with it starts a new segment "
+        "(SAMPLE_NEW_SEGMENT){}",
+        fields({{"EXODAQ_EVENT", "reload_new_segment"}}));
+  }
   if (configured_level(options_, next).empty() && next.logging.level != config_.logging.level) {
     spdlog::info("reload: logging.level {} not applied: --log-level or SPDLOG_LEVEL sets the level",
                  next.logging.level);
@@ -667,14 +878,17 @@ void Supervisor::log_changes(const ServiceConfig& next) const {
 
 void Supervisor::drain_events() {
   LogEvent event;
-  while (acq_.pop_event(event)) log_event(event, acq_.config(), acq_.run_id(), acq_.state());
+  while (acq_.pop_event(event))
+    log_event(event, acq_.config(), acq_.run_id(), acq_.state(), overruns_);
+  if (const auto line = overruns_.due(mono_now_ns()))
+    log_overruns(*line, acq_.state(), acq_.run_id());
 }
 
 void Supervisor::notify_systemd(std::int64_t now) {
   const std::int64_t cycles = acq_.cycles();
   if (!ready_ && cycles > 0) {
     // The first complete cycle: published, so clients can subscribe now.
-    notify("READY=1\n" + status_line(acq_, rate_hz_));
+    notify("READY=1\n" + status_line(acq_, rate_hz_, config_.clock.require_sync, log_lost_));
     notified_state_ = acq_.state();
     ready_ = true;
   }
@@ -695,7 +909,7 @@ void Supervisor::notify_systemd(std::int64_t now) {
   // STATUS=: once a second, and at once when the state changes.
   if (ready_ && (second || acq_.state() != notified_state_)) {
     notified_state_ = acq_.state();
-    notify(status_line(acq_, rate_hz_));
+    notify(status_line(acq_, rate_hz_, config_.clock.require_sync, log_lost_));
   }
 }
 
@@ -720,12 +934,16 @@ void write_lateness_log(const Acquisition& acq, const std::string& path) {
   }
 }
 
-// Stops the loop (its final status published), logs what is left, exits the logger.
-void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& logging) {
+// Stops the loop (its final status published), logs what is left (the
+// overruns not yet reported too), exits the logger.
+void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& logging,
+               OverrunReport& overruns) {
   notify("STOPPING=1\nSTATUS=stopping");
   acq.stop();
   LogEvent event;
-  while (acq.pop_event(event)) log_event(event, acq.config(), acq.run_id(), acq.state());
+  while (acq.pop_event(event)) log_event(event, acq.config(), acq.run_id(), acq.state(), overruns);
+  if (const auto line = overruns.due(mono_now_ns(), true))
+    log_overruns(*line, acq.state(), acq.run_id());
   if (acq.events_dropped() > 0) {
     spdlog::warn("{} loop events were not logged: the event ring was full", acq.events_dropped());
   }
@@ -761,9 +979,10 @@ int run_daemon(const DaemonOptions& options) {
   const std::unique_ptr<Acquisition> acq = start_acquisition(config, options, logging, *claim);
   if (!acq) return 1;
   log_started(config, acq->run_id());
-  Supervisor(*acq, config, options, signals, started_ns).run();
+  OverrunReport overruns;
+  Supervisor(*acq, config, options, signals, started_ns, logging, overruns).run();
   claim->detach();
-  shut_down(*acq, options, logging);
+  shut_down(*acq, options, logging, overruns);
   return 0;
 }
 

@@ -90,8 +90,15 @@ bool BoardDecoder::needs_resync(const can::CanFrame& frame) const noexcept {
 void BoardDecoder::on_counts(const can::CanFrame& frame, const can::CountsPayload& counts,
                              bool first_half) noexcept {
   const std::uint32_t half = first_half ? kHalfA : kHalfB;
+  // A half of the cycle being assembled or of the one last closed belongs to
+  // the board's running sequence however long the silence before it (a board
+  // held off between its two frames): it completes that cycle or comes too
+  // late for it, never opens it a second time, and the board was heard.
+  const bool same_cycle = (pending_.active && counts.seq == pending_.seq) ||
+                          (closed_valid_ && counts.seq == closed_seq_);
+  if (same_cycle) stats_.last_count_frame_mono_ns = frame.mono_ns;
   bool resynced = false;
-  if (needs_resync(frame)) {
+  if (!same_cycle && needs_resync(frame)) {
     if (pending_.active) close_pending();
     closed_valid_ = false;
     consecutive_rejects_ = 0;

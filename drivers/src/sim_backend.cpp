@@ -4,7 +4,11 @@
 #include <cmath>
 #include <sstream>
 
+#include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/drivers/sim_source.hpp"
+#include "exodaq/drivers/sim_task.hpp"
+#include "exodaq/kinematics/chain.hpp"
+#include "exodaq/kinematics/rig_kinematics.hpp"
 
 namespace exodaq::drivers {
 
@@ -189,8 +193,8 @@ sim::SimOptions sim_options_from(const SimSourceSettings& settings, const Source
   if (settings.motion == "task" && settings.task) {
     auto task = std::make_shared<sim::SimTask>();
     task->file = settings.task;
-    task->chain = ctx.chain;
-    task->rig = ctx.rig;
+    if (ctx.chain) task->chain = *ctx.chain;
+    if (ctx.rig) task->rig = *ctx.rig;
     for (std::size_t j = 0; j < ctx.joints.size(); ++j) {
       task->max_speed_rad_s[j] = ctx.joints[j].max_speed_rad_s;
     }

@@ -2,6 +2,8 @@
 
 #include <sstream>
 
+#include "exodaq/config/yaml_reader.hpp"
+
 namespace exodaq::drivers {
 
 namespace {

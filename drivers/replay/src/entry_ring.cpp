@@ -39,7 +39,6 @@ void EntryRing::wake(std::atomic<std::uint64_t>& target, std::uint64_t reached,
 bool EntryRing::push(const Entry& entry) noexcept {
   const std::uint64_t tail = tail_.load(std::memory_order_relaxed);
   if (tail - head_.load(std::memory_order_acquire) == capacity()) {
-    producer_waits_.fetch_add(1, std::memory_order_relaxed);
     const std::uint64_t wanted = tail - capacity() / 2;  // half of it free
     wait_until(producer_wants_head_, wanted, producer_word_,
                [&] { return head_.load() >= wanted || cancelled_.load(); });

@@ -43,12 +43,9 @@ class EntryRing {
   std::size_t size() const noexcept;
   bool finished() const noexcept { return finished_.load(std::memory_order_acquire); }
   bool cancelled() const noexcept { return cancelled_.load(std::memory_order_acquire); }
-  // How often each side had to wait.
+  // How often the consumer had to wait.
   std::int64_t consumer_waits() const noexcept {
     return consumer_waits_.load(std::memory_order_relaxed);
-  }
-  std::int64_t producer_waits() const noexcept {
-    return producer_waits_.load(std::memory_order_relaxed);
   }
 
  private:
@@ -75,7 +72,6 @@ class EntryRing {
   alignas(64) std::atomic<std::uint64_t> producer_wants_head_{0};
   std::atomic<std::uint32_t> producer_word_{0};
   std::atomic<std::int64_t> consumer_waits_{0};
-  std::atomic<std::int64_t> producer_waits_{0};
 };
 
 }  // namespace exodaq::drivers::replay

@@ -110,6 +110,11 @@ class LcmLoader {
   std::int64_t previous_seq_ = -1;
   EncoderSample previous_{};
   bool have_previous_ = false;
+  // The damaged stretch just read past (1 + its index; 0: none) and the raw
+  // seq before it; per stretch, the raw seq on either side.
+  std::size_t damage_pending_ = 0;
+  std::int64_t damage_before_ = -1;
+  std::map<std::size_t, std::pair<std::int64_t, std::int64_t>> damage_cost_;
 };
 
 // The raw channel, its prefix and the joint_state_t channel beside it: from
@@ -143,6 +148,10 @@ void LcmLoader::load() {
   msg::LogReader log(path);
   msg::LogEvent ev;
   while (!stopped_ && log.next(ev)) {
+    if (ev.follows_damage) {
+      damage_pending_ = log.damage().size();
+      damage_before_ = previous_seq_;
+    }
     ++summary.events;
     if (!joint_channel_.empty() && ev.channel == joint_channel_) {
       if (counted_ != nullptr) on_joint_state(ev);  // counting needs no loop bits
@@ -152,11 +161,34 @@ void LcmLoader::load() {
       on_homing(ev);
     }
   }
-  for (const msg::LogDamage& d : log.damage()) {
-    out_.note(d.after_event + 1, "log damaged or truncated after event " +
-                                     std::to_string(d.after_event) + ": bytes " +
-                                     std::to_string(d.from) + ".." + std::to_string(d.to) +
-                                     " of '" + path + "' were not replayed");
+  const auto& damage = log.damage();
+  for (std::size_t i = 0; i < damage.size(); ++i) {
+    const msg::LogDamage& d = damage[i];
+    std::string what = "log damaged after event " + std::to_string(d.after_event) + ": bytes " +
+                       std::to_string(d.from) + ".." + std::to_string(d.to) + " of '" + path +
+                       "': " + d.what;
+    if (d.events_lost == 0) {
+      out_.note(d.after_event + 1, what + "; the event there was read");
+      continue;
+    }
+    ++summary.damaged_stretches;
+    what +=
+        "; " +
+        (d.events_lost > 0 ? std::to_string(d.events_lost) : std::string("an unknown number of")) +
+        (d.events_lost == 1 ? " event" : " events") + " lost, ";
+    const auto cost = damage_cost_.find(i);
+    if (cost == damage_cost_.end()) {
+      what += "the cycles after it are not in the log";
+    } else {
+      const auto [before, after] = cost->second;
+      const std::int64_t n = after - before - 1;
+      summary.damaged_cycles += n;
+      what +=
+          std::to_string(n) + (n == 1 ? " cycle" : " cycles") + " lost with them" +
+          (n > 0 ? " (seq " + std::to_string(before + 1) + ".." + std::to_string(after - 1) + ")"
+                 : std::string());
+    }
+    out_.note(d.after_event + 1, what + "; not replayed");
   }
   summary.missing = out_.stats.missing_samples;
   if (!have_run_) {
@@ -199,6 +231,12 @@ void LcmLoader::on_raw(const msg::LogEvent& ev) {
     return;
   }
   if (!accept_run(ev.number)) return;
+  if (damage_pending_ != 0) {
+    if (damage_before_ >= 0 && raw_.seq > damage_before_) {
+      damage_cost_[damage_pending_ - 1] = {damage_before_, raw_.seq};
+    }
+    damage_pending_ = 0;
+  }
   Entry e;
   e.seq = raw_.seq;
   msg::from_encoder_raw(raw_, e.sample);
@@ -232,7 +270,7 @@ bool LcmLoader::accept_run(std::int64_t event_number) {
                   "is replayed",
                   static_cast<unsigned long long>(raw_.run_id),
                   static_cast<unsigned long long>(out_.summary.run_id));
-    out_.note(event_number, text);
+    out_.note(event_number, text, false);
   }
   ++out_.summary.skipped_other_runs;
   return false;
@@ -297,7 +335,7 @@ void LcmLoader::on_homing(const msg::LogEvent& ev) {
 // this very cycle, logged before it, is taken.
 void LcmLoader::follow_counts(const EncoderSample& s) {
   for (std::size_t c = 0; c < kChannelCount; ++c) {
-    if (have_counts_) travel_[c] += can::count_delta16(last16_[c], s.count16[c]);
+    if (have_counts_) travel_[c] += count_delta16(last16_[c], s.count16[c]);
     last16_[c] = s.count16[c];
   }
   have_counts_ = true;

@@ -34,8 +34,8 @@ struct Pass {
   JointResumeSet resume{};     // lcm: valid when summary.resumed_at_seq >= 0
 
   static constexpr std::size_t kMaxStoredIssues = 1000;
-  void note(std::int64_t where, std::string what) {
-    if (issues.size() < kMaxStoredIssues) issues.push_back({where, std::move(what)});
+  void note(std::int64_t where, std::string what, bool problem = true) {
+    if (issues.size() < kMaxStoredIssues) issues.push_back({where, std::move(what), problem});
   }
 };
 

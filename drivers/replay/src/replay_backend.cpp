@@ -2,6 +2,7 @@
 
 #include <sstream>
 
+#include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/drivers/replay_source.hpp"
 
 namespace exodaq::drivers {

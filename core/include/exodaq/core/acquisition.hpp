@@ -85,6 +85,17 @@ class Acquisition {
   std::int64_t foreign_run_id() const noexcept {
     return foreign_run_id_.load(std::memory_order_relaxed);
   }
+  // The seq of the last status this loop assembled (-1: none yet), stored
+  // before the status is sent: a status carrying this run id and a later seq
+  // is not this loop's (the daemon's listener, instance_guard.hpp).
+  std::int64_t last_status_seq() const noexcept {
+    return last_status_seq_.load(std::memory_order_acquire);
+  }
+  // Any thread: log lines the daemon's output lost (since start); the status
+  // message says so. One atomic store; the loop loads it once per status.
+  void set_log_lines_dropped(std::int64_t lines) noexcept {
+    log_lines_dropped_.store(lines, std::memory_order_relaxed);
+  }
 
   bool pop_event(LogEvent& out) noexcept { return events_.pop(out); }
   // Events lost because the ring was full.
@@ -95,6 +106,12 @@ class Acquisition {
   // cycle (realtime_report()) is visible to the caller.
   std::int64_t cycles() const noexcept { return cycles_.load(std::memory_order_acquire); }
   ServiceState state() const noexcept { return state_.load(std::memory_order_relaxed); }
+  // As of the last status window: why the state is what it is, and the
+  // joints homed (systemd's STATUS=).
+  StateReason state_reason() const noexcept {
+    return state_reason_.load(std::memory_order_relaxed);
+  }
+  int homed_joints() const noexcept { return homed_joints_.load(std::memory_order_relaxed); }
   bool finished() const noexcept { return finished_.load(std::memory_order_acquire); }
   std::int64_t overruns() const noexcept { return overruns_.load(std::memory_order_relaxed); }
   // Samples flagged LATE; samples published after the first of their wake
@@ -149,9 +166,10 @@ class Acquisition {
                       bool first_of_wake, std::int64_t work_start_ns) noexcept;
   void push_joint_events() noexcept;
   void record_lateness(std::int64_t lateness_ns) noexcept;
-  void count_overrun(std::int64_t missed, std::int64_t work_ns) noexcept;
+  void count_overrun(std::int64_t missed, std::int64_t lateness_ns, std::int64_t work_ns) noexcept;
   void finish_window(std::int64_t now_mono) noexcept;
   void push_event(LogEvent::Kind kind) noexcept;
+  void push_segment_event(const std::array<double, kJointCount>& before) noexcept;
 
   AcquisitionConfig config_;
   ConfigHandover configs_;
@@ -175,10 +193,13 @@ class Acquisition {
   std::int64_t last_emitted_mono_ns_ = 0;
   std::int64_t last_present_mono_ns_ = 0;
   std::int64_t last_present_seq_ = 0;
+  bool segment_pending_ = false;  // a reload taken: the next sample starts a new segment
 
   std::atomic<std::int64_t> cycles_{0};
   std::atomic<std::int64_t> overruns_{0};
   std::atomic<std::int64_t> foreign_run_id_{0};
+  std::atomic<std::int64_t> last_status_seq_{-1};
+  std::atomic<std::int64_t> log_lines_dropped_{0};
   std::atomic<std::int64_t> late_{0};
   std::atomic<std::int64_t> caught_up_{0};
   std::atomic<std::int64_t> backlog_wakes_{0};
@@ -189,6 +210,8 @@ class Acquisition {
   std::atomic<std::int64_t> published_late_syncs_{0};
   std::atomic<drivers::BusState> published_bus_state_{drivers::BusState::kUnknown};
   std::atomic<ServiceState> state_{ServiceState::kStarting};
+  std::atomic<StateReason> state_reason_{StateReason::kNone};
+  std::atomic<int> homed_joints_{0};
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> finished_{false};
   std::thread thread_;

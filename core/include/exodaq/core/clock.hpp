@@ -11,7 +11,7 @@
 #include <mutex>
 #include <thread>
 
-#include "exodaq/config/service_config.hpp"
+#include "exodaq/config/service_settings.hpp"
 
 namespace exodaq::core {
 

@@ -24,7 +24,8 @@ class ConfigHandover {
   // one it replaces may be freed from here on.
   const PipelineConfig* take_staged() noexcept;
 
-  // Main thread: replaces a configuration staged but not yet taken.
+  // Main thread: replaces a configuration staged but not yet taken (whose
+  // new_segment `next` inherits).
   void stage(std::unique_ptr<PipelineConfig> next) noexcept;
 
  private:

@@ -7,7 +7,7 @@
 #include <array>
 #include <cstdint>
 
-#include "exodaq/config/service_config.hpp"
+#include "exodaq/config/service_settings.hpp"
 #include "exodaq/drivers/encoder_source.hpp"
 #include "exodaq/wire_constants.hpp"
 
@@ -58,6 +58,7 @@ struct JointTrackerConfig {
   int velocity_window = 21;  // samples in the velocity fit (odd, <= kMaxVelocityWindow)
 };
 
+using config::kJointCount;
 using config::kMaxVelocityWindow;
 
 // The velocity fit's exact sums (a GCC/Clang extension, hence __extension__).

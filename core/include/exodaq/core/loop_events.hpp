@@ -19,15 +19,18 @@ struct LogEvent {
     kClockStep,
     kStateChange,
     kReloadApplied,
+    kNewSegment,  // joint: the one that moved most, value: by how much (rad)
     kEndOfStream,
   };
   Kind kind = Kind::kJoint;
   std::int64_t seq = 0;
   int joint = -1;
   JointEvent joint_event = JointEvent::kNone;
-  double value = 0.0;      // angle, drift, lateness... by kind
-  std::int64_t count = 0;  // counter value after the event
+  double value = 0.0;      // angle, drift... by kind; kOverrun: the wake's lateness (us)
+  double work_us = 0.0;    // kOverrun: the cycle's work, wake to end (us)
+  std::int64_t count = 0;  // counter value after the event; kOverrun: deadlines skipped
   ServiceState state = ServiceState::kStarting;
+  StateCause cause;  // kStateChange: why
 };
 
 class EventRing {

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <tuple>
 
 #include "exodaq/core/pipeline.hpp"
 #include "exodaq/core/publisher.hpp"
@@ -17,16 +18,15 @@
 
 namespace exodaq::core {
 
-// Encodes `message` into a publisher slot and commits it; a full ring drops
-// it (the publisher counts the drop).
+// Encodes `message` into a publisher slot for its type's channel and commits
+// it; a full ring drops it (the publisher counts the drop).
 template <typename Msg>
-void publish_encoded(Publisher& publisher, msg::Kind channel, const Msg& message,
-                     std::int64_t utime_us) noexcept {
+void publish_encoded(Publisher& publisher, const Msg& message, std::int64_t utime_us) noexcept {
   OutgoingMessage* slot = publisher.acquire();
   if (slot == nullptr) return;
   const int n = message.encode(slot->bytes.data(), 0, static_cast<int>(slot->bytes.size()));
   if (n < 0) return;  // cannot happen with checked sizes; the slot is simply not committed
-  slot->channel = channel;
+  slot->channel = msg::KindOf<Msg>::value;
   slot->size = static_cast<std::uint32_t>(n);
   slot->utime_us = utime_us;
   slot->seq = message.seq;
@@ -39,8 +39,8 @@ class MessageEncoder {
   MessageEncoder(const std::array<std::string, kJointCount>& joint_names, std::int64_t run_id,
                  bool publish_raw, std::int64_t period_ns = 1'000'000);
 
-  // Start-up: encodes every message once into scratch memory (lcm-gen's hashes
-  // are initialised on first use). Throws if one does not fit a slot.
+  // Start-up: encodes each of its messages once into scratch memory (lcm-gen's
+  // hashes are initialised on first use). Throws if one does not fit a slot.
   void warm_up() const;
 
   // The palm pose first (what a BMI decoder waits for), then the joints, then
@@ -56,10 +56,9 @@ class MessageEncoder {
 
  private:
   bool publish_raw_;
-  exodaq::joint_state_t joint_{};
-  exodaq::palm_pose_t palm_{};
-  exodaq::encoder_raw_t raw_{};
-  exodaq::homing_t homing_{};
+  // One message of each type it publishes, filled in place every cycle; the
+  // constructor and warm_up() treat them all alike.
+  std::tuple<joint_state_t, palm_pose_t, encoder_raw_t, homing_t> messages_{};
   std::int64_t homing_every_ = 1000;  // cycles
   std::array<HomingReference, kJointCount> last_reference_{};
 };

@@ -15,8 +15,6 @@
 
 namespace exodaq::core {
 
-using config::kJointCount;
-
 // palm_pose_t's INVALID_* bits.
 namespace invalid_reason {
 inline constexpr std::uint32_t kUnhomed = wire::palm_pose::INVALID_UNHOMED;
@@ -39,6 +37,9 @@ struct ConfigFiles {
   std::string calibration_path;
   std::string calibration_sha256;
   std::string calibration_provenance;
+  // A reload left restart-only settings of config_path unapplied: no file
+  // describes the configuration in effect, and config_sha256 is empty.
+  bool restart_pending = false;
 };
 
 struct PipelineConfig {
@@ -50,6 +51,10 @@ struct PipelineConfig {
   std::optional<ClockPolicy> clock;
   // The files it came from, for status_t (cut to its field limits).
   ConfigFiles files;
+  // Set by a reload that changes how counts become angles or angles the palm
+  // pose (settings::starts_new_segment()): the first sample the loop
+  // publishes with it carries SAMPLE_NEW_SEGMENT.
+  bool new_segment = false;
 };
 
 // Everything one cycle publishes.

@@ -37,7 +37,8 @@ struct WindowEnd {
   drivers::SourceStats source;
   std::int64_t utime_correction_ns = 0;  // TimeBase
   std::int64_t clock_steps = 0;
-  std::int64_t foreign_run_id = 0;  // another run heard on our status channel (0: none)
+  std::int64_t foreign_run_id = 0;     // another run heard on our status channel (0: none)
+  std::int64_t log_lines_dropped = 0;  // the daemon's log output lost them (since start)
 };
 
 class StatusAssembler {
@@ -65,6 +66,9 @@ class StatusAssembler {
   // next window starts empty.
   ServiceState close_window(ServiceState current, const WindowEnd& end) noexcept;
   const exodaq::status_t& message() const noexcept { return status_; }
+  // Why the last window's state was chosen, and the joints homed at its end.
+  const StateCause& cause() const noexcept { return cause_; }
+  int homed() const noexcept { return homed_; }
 
  private:
   // The status_t strings naming the files in effect, each with its limit.
@@ -74,6 +78,7 @@ class StatusAssembler {
   void fill_joints_and_text(ServiceState state, const WindowEnd& end) noexcept;
   int append_publish_text(char* text, int n, int cap, ServiceState state,
                           const WindowEnd& end) const noexcept;
+  int append_service_text(char* text, int n, int cap, const WindowEnd& end) const noexcept;
 
   const Pipeline& pipeline_;
   const ClockShared& clock_;
@@ -87,6 +92,11 @@ class StatusAssembler {
   std::int64_t last_sample_wake_ns_ = 0;
   std::int64_t window_overruns_start_ = 0;
   std::int64_t window_publish_failures_start_ = 0;
+  StateCause cause_;
+  int homed_ = 0;
+  std::int64_t window_start_ns_ = 0;  // the previous window's close (0: before the first cycle)
+  std::int64_t segment_seq_ = -1;     // a new segment started at this seq in the window (-1: none)
+  bool restart_pending_ = false;      // ConfigFiles::restart_pending of the files in effect
 };
 
 }  // namespace exodaq::core

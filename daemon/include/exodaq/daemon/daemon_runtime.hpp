@@ -1,8 +1,11 @@
 #pragma once
-// The daemon's process-level wiring: configuration, logging, signals
-// (SIGTERM/SIGINT stop, SIGHUP reloads, others logged), systemd notification and the
-// acquisition. main() only parses the command line.
+// The daemon's process-level wiring: configuration, logging (never waited
+// for), signals (SIGTERM/SIGINT/SIGQUIT stop, SIGHUP reloads, job-control
+// stops refused, others logged), systemd notification and the acquisition.
+// main() only parses the command line.
+#include <chrono>
 #include <string>
+#include <string_view>
 
 namespace exodaq::daemon {
 
@@ -16,12 +19,20 @@ struct DaemonOptions {
 };
 
 // The first thing exodaqd does (main(), and again in run_daemon()): SIGPIPE
-// ignored; SIGTERM, SIGINT, SIGHUP and the signals the daemon has no use for
-// (SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPOLL, SIGPWR) blocked in this
-// thread and every thread created after it. None ends the process by its
-// default action: they stay pending through start-up and the supervisor takes
-// them once the loop runs (a stop, a reload, or a warning). docs/operations.md.
+// ignored; every other signal whose default action ends or stops a process
+// blocked in this thread and every thread created after it (all but the
+// program errors SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT; SIGRTMIN..SIGRTMAX
+// included). None ends or stops the process by its default action: they stay
+// pending through start-up and the supervisor takes them once the loop runs
+// (a stop, a reload, a refused job-control stop, or a warning).
+// docs/operations.md, "Signals".
 void take_over_signals();
+
+// Writes `text` to stderr, waiting at most `limit` for the output to take it
+// (a pipe nobody reads, a paused terminal): what exodaqd says outside its log
+// (command-line and configuration errors). False when it was not written.
+bool write_stderr(std::string_view text,
+                  std::chrono::milliseconds limit = std::chrono::milliseconds(1000));
 
 // Returns the process exit code: 0 clean stop, 1 configuration or start-up error.
 int run_daemon(const DaemonOptions& options);

@@ -10,9 +10,12 @@
 #include <string_view>
 #include <vector>
 
-#include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/drivers/encoder_source.hpp"
 #include "exodaq/drivers/source_options.hpp"
+
+namespace exodaq::config {
+class MapReader;  // config/yaml_reader.hpp: what a backend's parser reads
+}  // namespace exodaq::config
 
 namespace exodaq::drivers {
 

@@ -9,6 +9,8 @@
 #include <cstdint>
 #include <string_view>
 
+#include "exodaq/common/count16.hpp"
+
 namespace exodaq::drivers::can {
 
 // ---------------------------------------------------------------------------
@@ -233,24 +235,9 @@ CanFrame encode_error(const ErrorPayload& err) noexcept;
 // Counter arithmetic
 // ---------------------------------------------------------------------------
 
-// Signed distance from reading `from` to reading `to` of a 16-bit counter, in
-// [−32768, 32767] (the smallest one modulo 65536).
-constexpr int count_delta16(std::uint16_t from, std::uint16_t to) noexcept {
-  return static_cast<std::int16_t>(static_cast<std::uint16_t>(to - from));
-}
-
-// Unwraps a 16-bit counter reading against the previous unwrapped value by the
-// smallest signed difference: result ≡ raw (mod 65536) and result − previous
-// ∈ [−32768, 32767]. Correct while fewer than 32768 counts pass between two
-// readings.
-constexpr std::int64_t unwrap16(std::int64_t previous, std::uint16_t raw) noexcept {
-  return previous + count_delta16(static_cast<std::uint16_t>(previous & 0xFFFF), raw);
-}
-
-// Signed distance from `from` to `to` in the uint8 sequence space, in
-// [−128, 127]: 1 = next cycle, 0 = same, negative = older.
-constexpr int seq_delta(std::uint8_t from, std::uint8_t to) noexcept {
-  return static_cast<std::int8_t>(static_cast<std::uint8_t>(to - from));
-}
+// 16-bit counts and 8-bit board sequences: exodaq/common/count16.hpp.
+using exodaq::count_delta16;
+using exodaq::seq_delta;
+using exodaq::unwrap16;
 
 }  // namespace exodaq::drivers::can

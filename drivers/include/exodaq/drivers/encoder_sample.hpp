@@ -12,7 +12,7 @@ inline constexpr int kChannelCount = 6;
 
 // Cycle-level flags: joint_state_t's SAMPLE_* bits (lcmtypes/exodaq/joint_state_t.lcm
 // says what each means), so they pass straight into the published messages.
-// Sources raise most; the clock, LATE and FOREIGN_RUN bits are the loop's.
+// Sources raise most; the clock, LATE, FOREIGN_RUN and NEW_SEGMENT bits are the loop's.
 namespace sample_flag {
 namespace w = wire::joint_state;
 inline constexpr std::uint32_t kMissing = w::SAMPLE_MISSING;
@@ -27,6 +27,7 @@ inline constexpr std::uint32_t kLate = w::SAMPLE_LATE;
 inline constexpr std::uint32_t kPartial = w::SAMPLE_PARTIAL;
 inline constexpr std::uint32_t kReplay = w::SAMPLE_REPLAY;
 inline constexpr std::uint32_t kForeignRun = w::SAMPLE_FOREIGN_RUN;
+inline constexpr std::uint32_t kNewSegment = w::SAMPLE_NEW_SEGMENT;
 }  // namespace sample_flag
 
 struct EncoderSample {

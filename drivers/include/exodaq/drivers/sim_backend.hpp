@@ -11,9 +11,12 @@
 
 #include "exodaq/drivers/backend.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
-#include "exodaq/drivers/sim_task.hpp"
 
 namespace exodaq::drivers {
+
+namespace sim {
+struct SimTaskFile;  // sim_task.hpp
+}  // namespace sim
 
 // source.sim
 struct SimSourceSettings final : BackendSettings {

@@ -27,7 +27,6 @@
 #include "exodaq/drivers/board_decoder.hpp"
 #include "exodaq/drivers/can_port.hpp"
 #include "exodaq/drivers/encoder_source.hpp"
-#include "exodaq/drivers/source_options.hpp"
 
 namespace exodaq::drivers {
 

@@ -4,9 +4,12 @@
 // for the sim's task planning).
 #include <array>
 #include <cstdint>
+#include <memory>
 
-#include "exodaq/kinematics/chain.hpp"
-#include "exodaq/kinematics/rig_kinematics.hpp"
+namespace exodaq::kin {
+class Chain;                 // kinematics/chain.hpp
+struct RigKinematicsConfig;  // kinematics/rig_kinematics.hpp
+}  // namespace exodaq::kin
 
 namespace exodaq::drivers {
 
@@ -25,8 +28,12 @@ struct SourceContext {
   std::int64_t period_ns = 1'000'000;
   std::int64_t counts_per_rev = 10000;
   std::array<SourceJointContext, 6> joints{};
-  kin::Chain chain;                // the model (the sim plans task motion with it)
-  kin::RigKinematicsConfig rig{};  // the model's elbow frame and shoulder joints
+  // The model (the sim plans task motion with it) and its elbow frame and
+  // shoulder joints; shared, so that a backend that plans nothing needs no
+  // kinematics headers. Null: none given (the defaults of kin::Chain and
+  // kin::RigKinematicsConfig).
+  std::shared_ptr<const kin::Chain> chain;
+  std::shared_ptr<const kin::RigKinematicsConfig> rig;
 };
 
 }  // namespace exodaq::drivers

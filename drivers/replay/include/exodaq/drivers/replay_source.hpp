@@ -57,6 +57,9 @@ enum class ReplayFormat : std::uint8_t { kLcm, kCandump };
 struct ReplayIssue {
   std::int64_t line = 0;  // candump: 1-based line number; lcm: event number
   std::string what;
+  // Damage or a malformed input (exodaq replay exits 1); false for a note
+  // (another daemon run in the log, not replayed).
+  bool problem = true;
 };
 
 struct ReplayLoadSummary {
@@ -77,6 +80,11 @@ struct ReplayLoadSummary {
   std::int64_t homing_records = 0;
   std::int64_t resumed_at_seq = -1;
   std::int64_t first_seq = -1;  // lcm: the recorded seq of the first sample
+  // lcm: damaged stretches of the log and the cycles of the run lost with
+  // them (seq numbers missing across each; a stretch at the end costs an
+  // unknown number, not counted).
+  std::int64_t damaged_stretches = 0;
+  std::int64_t damaged_cycles = 0;
 };
 
 class ReplaySource final : public EncoderSource {
