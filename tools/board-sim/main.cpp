@@ -17,6 +17,7 @@
 #include "board_sim.hpp"
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/config/service_config.hpp"
+#include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/socketcan_backend.hpp"
 

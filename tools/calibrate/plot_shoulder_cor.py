@@ -5,7 +5,8 @@ Usage: plot_shoulder_cor.py BINS.csv OUT.png
 
 The CSV is written by `exodaq shoulder-cor --csv/--plot`: one row per
 humerus-elevation bin with the centre of rotation in the torso frame and its
-vertical and horizontal motion relative to the first bin.
+vertical and horizontal motion relative to the first bin, each with its 95 %
+confidence half-width (drawn as error bars; a flagged bin is drawn hollow).
 """
 import csv
 import sys
@@ -31,16 +32,24 @@ def main(argv):
     if not bins:
         print("plot_shoulder_cor.py: no valid bin in " + argv[1], file=sys.stderr)
         return 1
-    mid = [(float(b["elevation_lo_deg"]) + float(b["elevation_hi_deg"])) / 2 for b in bins]
+    # The centre of each bin is at its mean elevation (the moving-centre model).
+    mid = [float(b["mean_elevation_deg"]) for b in bins]
     vertical = [float(b["vertical_mm"]) for b in bins]
     horizontal = [float(b["horizontal_mm"]) for b in bins]
+    vertical_ci = [float(b.get("vertical_ci95_mm") or 0) for b in bins]
+    horizontal_ci = [float(b.get("horizontal_ci95_mm") or 0) for b in bins]
+    flagged = [bool(b.get("flags")) for b in bins]
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 5))
     ax = axes[0]
-    ax.plot(mid, vertical, "o-", label="this recording")
+    ax.errorbar(mid, vertical, yerr=vertical_ci, fmt="o-", capsize=4,
+                label="this recording (95 % confidence)")
+    for x, v, bad in zip(mid, vertical, flagged):
+        if bad:
+            ax.plot(x, v, "o", markerfacecolor="white", color="tab:red")
     ax.plot([(lo + hi) / 2 for (lo, hi), _ in TABLE_II], [v for _, v in TABLE_II], "s--",
             color="gray", label="seed 001 Table II (macaque)")
-    ax.set_xlabel("humerus elevation, bin centre [deg]")
+    ax.set_xlabel("humerus elevation, the bin's mean [deg]")
     ax.set_ylabel("CoR vertical motion [mm]")
     ax.set_title("Elevation of the shoulder centre")
     ax.grid(True, alpha=0.3)
@@ -49,7 +58,9 @@ def main(argv):
     ax = axes[1]
     ax.plot(horizontal, vertical, "-", color="tab:blue", alpha=0.5)
     for k, (h, v) in enumerate(zip(horizontal, vertical)):
-        ax.plot(h, v, "o", color="tab:blue")
+        ax.errorbar(h, v, xerr=horizontal_ci[k], yerr=vertical_ci[k], fmt="o", capsize=3,
+                    color="tab:red" if flagged[k] else "tab:blue",
+                    markerfacecolor="white" if flagged[k] else "tab:blue")
         ax.annotate(str(int(bins[k]["bin"]) + 1), (h, v), textcoords="offset points", xytext=(6, 4))
     ax.set_xlabel("horizontal motion [mm] (direction of largest spread)")
     ax.set_ylabel("vertical motion [mm]")

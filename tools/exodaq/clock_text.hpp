@@ -8,18 +8,30 @@
 #include <optional>
 #include <string>
 
-#include "exodaq/config/service_config.hpp"
+#include "exodaq/config/service_settings.hpp"
+#include "exodaq/messages/csv.hpp"
 #include "exodaq/status_t.hpp"
 
 namespace exodaq::tools {
 
 inline constexpr double kKernelUnknownErrorUs = 16'000'000.0;  // NTP_PHASE_LIMIT-derived
 
+// The kernel's estimate, or nothing when it has none (16 s and more).
+inline bool clock_error_known(double us) {
+  return us < kKernelUnknownErrorUs;
+}
+
 inline std::string clock_error_text(double us) {
-  if (!(us < kKernelUnknownErrorUs)) return "unknown";
+  if (!clock_error_known(us)) return "unknown";
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.1f us", us);
   return buf;
+}
+
+// For JSON: the number, or null when unknown.
+inline std::string clock_error_json(double us) {
+  if (!clock_error_known(us)) return "null";
+  return msg::csv::number(us);
 }
 
 // "synchronised", "NOT SYNCHRONISED" or "not synchronised (ignored: clock.require_sync: ignore)".

@@ -1,9 +1,11 @@
 // exodaq calibrate: offline kinematic calibration (seed 000 §4, issues 8 and 18).
 //   exodaq calibrate --encoders ENC --markers MOCAP.csv --bounds B.yaml -o cal.yaml
 //                    [-c CONFIG] [--recorded-calibration FILE] [-p PREFIX]
-//                    [--model M] [--marker-layout L.yaml | --marker-id N]
-//                    [--validate [ENC,]MOCAP.csv ...] [--robust huber|cauchy]
-//                    [--estimate-time-offset] [--plot out.png] [--max-points N]
+//                    [--model M] [--marker-layout L.yaml | --marker-id N|LABEL]
+//                    [--validate [ENC,]MOCAP ...] [--robust huber|cauchy]
+//                    [--align-time auto|on|off] [--estimate-time-offset]
+//                    [--plot out.png] [--max-points N]
+// MOCAP: the long CSV, C3D, a Vicon Nexus or an OptiTrack Motive CSV export.
 // ENC: calibrate's own CSV (θᴿ), the CSV of `exodaq export`, or an LCM log
 // (lcm-logger, exodaq replay). The project's recordings hold calibrated
 // angles: with -c CONFIG an LCM log's raw channel is re-processed by `exodaq
@@ -25,6 +27,7 @@
 #include "exodaq/calibration/inputs.hpp"
 #include "exodaq/calibration/report.hpp"
 #include "exodaq/calibration/solver.hpp"
+#include "exodaq/calibration/time_alignment.hpp"
 #include "exodaq/config/calibration_file.hpp"
 #include "exodaq/config/model_file.hpp"
 #include "exodaq/config/service_config.hpp"
@@ -44,8 +47,9 @@ struct CalibrateOptions {
   std::string robust = "none";
   double robust_scale_mm = 1.0;
   bool estimate_time_offset = false;
-  std::size_t max_points = 0;
-  int marker_id = -1;
+  std::string align_time = "auto";
+  std::size_t max_points = 2000;
+  std::string marker_id;  // an id or a label
   double max_gap_ms = 5.0;
   bool quiet = false;  // common -q
   // Every file read, so no output replaces one.
@@ -153,6 +157,7 @@ struct Setup {
 
 // The training data and the validation sets, aligned.
 struct Data {
+  double clock_offset_s = 0;  // coarse alignment applied to the markers (0: none)
   cal::EncoderSeries encoders;
   std::vector<cal::AlignedSample> points;
   std::vector<cal::ValidationResult> validation;
@@ -211,30 +216,106 @@ cal::AlignmentOptions alignment_options(const CalibrateOptions& o, const cal::Bo
   return ao;
 }
 
-// The marker CSV: the layout's markers, or one marker (--marker-id).
-cal::MarkerSeries read_markers(const std::string& path, const CalibrateOptions& o, const Setup& s) {
-  return s.layout ? cal::read_marker_csv_ids(path, s.layout->ids())
-                  : cal::read_marker_csv(path, o.marker_id);
+// The markers of a file: the layout's, or one marker (--marker-id: an id or
+// a label). With a layout, the sites' ids as the file resolved them.
+struct Markers {
+  cal::MarkerSeries series;
+  std::optional<cal::MarkerLayout> layout;
+};
+
+Markers read_markers(const std::string& path, const CalibrateOptions& o, const Setup& s) {
+  Markers m;
+  if (s.layout) {
+    m.series = cal::read_markers(path, cal::layout_refs(*s.layout));
+    m.layout = cal::resolved_layout(*s.layout, m.series);
+  } else {
+    m.series = cal::read_markers(
+        path, o.marker_id.empty() ? std::vector<cal::MarkerRef>{}
+                                  : std::vector<cal::MarkerRef>{cal::marker_ref(o.marker_id)});
+  }
+  for (const auto& n : m.series.info.notes) std::cout << "  " << n << "\n";
+  return m;
 }
 
-std::vector<cal::AlignedSample> align_points(const cal::EncoderSeries& enc,
-                                             const cal::MarkerSeries& markers,
-                                             const cal::AlignmentOptions& ao, const Setup& s,
+// The hand marker whose speed the time alignment compares.
+cal::MarkerSite alignment_site(const Markers& m) {
+  if (m.layout) {
+    for (const auto& site : m.layout->sites) {
+      if (site.mount == cal::MarkerMount::kHand) return site;
+    }
+  }
+  cal::MarkerSite site;
+  site.id = m.series.ids.empty() ? -1 : m.series.ids.front();
+  return site;
+}
+
+bool align_clocks(const CalibrateOptions& o, const cal::EncoderSeries& enc, const Markers& m) {
+  if (o.align_time == "on") return true;
+  if (o.align_time == "off") return false;
+  return cal::needs_time_alignment(enc, m.series);
+}
+
+// τ's range after a coarse alignment: the bounds file's, at least ±100 ms.
+cal::TimeOffsetPrior coarse_refinement(cal::TimeOffsetPrior p) {
+  p.initial_s = 0;
+  p.lower_s = std::min(p.lower_s, -0.1);
+  p.upper_s = std::max(p.upper_s, 0.1);
+  return p;
+}
+
+// The coarse clock offset (speed cross-correlation), printed; the markers
+// come back in encoder time.
+double coarse_align(const std::string& label, const cal::NominalModel& model,
+                    const cal::ParamVector& x, const cal::EncoderSeries& enc, Markers& m) {
+  const cal::CoarseOffset c = cal::coarse_time_offset(model, x, enc, m.series, alignment_site(m));
+  std::cout << label << ": " << cal::format_name(m.series.info.format)
+            << (m.series.info.epoch_times ? " outside the encoder log's time" : " without an epoch")
+            << ": clock offset (encoder = marker + offset) " << c.describe() << std::endl;
+  if (!m.series.info.start_time.empty()) {
+    std::cout << "  (the file's own capture start time: " << m.series.info.start_time
+              << ", not used: its clock and time zone are the mocap host's)" << std::endl;
+  }
+  if (c.ambiguous()) {
+    std::cout << "WARNING: " << label << ": the speed profiles match almost as well "
+              << c.runner_up_at_s - c.offset_s
+              << " s away: the clock offset is ambiguous (a repetitive motion?)" << std::endl;
+  }
+  m.series = cal::shifted_markers(std::move(m.series), c.offset_s);
+  return c.offset_s;
+}
+
+std::vector<cal::AlignedSample> align_points(const cal::EncoderSeries& enc, const Markers& m,
+                                             const cal::AlignmentOptions& ao,
                                              const std::string& label, cal::AlignmentStats& st) {
-  auto points = cal::align(enc, markers, ao, st);
-  if (s.layout) cal::apply_layout(points, *s.layout);
+  auto points = cal::align(enc, m.series, ao, st);
+  if (m.layout) cal::apply_layout(points, *m.layout);
   cal::print_alignment(std::cout, label, st);
   return points;
 }
 
-// Apply the estimated clock offset to a validation set: shift the marker times.
-cal::MarkerSeries shifted(cal::MarkerSeries m, const cal::Report& report) {
-  if (report.time_offset_s) {
-    for (auto& s : m.samples) {
-      s.utime_us += static_cast<std::int64_t>(std::llround(*report.time_offset_s * 1e6));
-    }
+// A validation capture's own clock offset, refined with the calibration: the
+// RMS error against the offset over ±3 coarse steps, and the parabola
+// through the least three.
+double refine_validation_offset(const cal::NominalModel& model, const cal::ParamVector& x,
+                                const cal::EncoderSeries& enc, const Markers& m,
+                                cal::AlignmentOptions ao, double step_s) {
+  ao.max_points = std::min<std::size_t>(ao.max_points == 0 ? 400 : ao.max_points, 400);
+  const double span = 3 * std::max(step_s, 1e-3), h = span / 15;
+  std::vector<double> taus, rms;
+  for (double tau = -span; tau <= span + 1e-12; tau += h) {
+    cal::AlignmentStats st;
+    auto pts = cal::align(enc, cal::shifted_markers(m.series, tau), ao, st);
+    if (m.layout) cal::apply_layout(pts, *m.layout);
+    if (pts.empty()) continue;
+    taus.push_back(tau);
+    rms.push_back(cal::evaluate(model, x, pts).rms_m);
   }
-  return m;
+  if (taus.size() < 3) return 0;
+  const auto k = static_cast<std::size_t>(std::min_element(rms.begin(), rms.end()) - rms.begin());
+  if (k == 0 || k + 1 == taus.size()) return taus[k];
+  const double a = rms[k - 1], b = rms[k], c = rms[k + 1];
+  const double denom = a - 2 * b + c;
+  return taus[k] + (denom > 0 ? 0.5 * h * (a - c) / denom : 0.0);
 }
 
 void validate_one(const std::string& spec, const CalibrateOptions& o, const Setup& s,
@@ -244,15 +325,24 @@ void validate_one(const std::string& spec, const CalibrateOptions& o, const Setu
   const std::string vmk_path = comma == std::string::npos ? spec : spec.substr(comma + 1);
   const cal::EncoderSeries venc =
       venc_path == o.encoders ? d.encoders : read_encoders(venc_path, o, s.encoders);
-  const cal::MarkerSeries vmk = shifted(read_markers(vmk_path, o, s), report);
+  Markers vmk = read_markers(vmk_path, o, s);
   cal::AlignmentOptions vao = alignment_options(o, s.bounds);
   vao.guard_us = 0;
+  const cal::ParamVector x = cal::estimates(report);
+  if (align_clocks(o, venc, vmk)) {
+    const double coarse = coarse_align("validate " + vmk_path, s.nominal, x, venc, vmk);
+    const double fine = refine_validation_offset(s.nominal, x, venc, vmk, vao, 0.002);
+    vmk.series = cal::shifted_markers(std::move(vmk.series), fine);
+    std::cout << "validate " << vmk_path << ": clock offset " << coarse + fine << " s" << std::endl;
+  } else if (report.time_offset_s) {
+    vmk.series = cal::shifted_markers(std::move(vmk.series), *report.time_offset_s);
+  }
   cal::ValidationResult r;
   r.name = vmk_path;
-  const auto vpts = align_points(venc, vmk, vao, s, "validate " + vmk_path, r.alignment);
+  const auto vpts = align_points(venc, vmk, vao, "validate " + vmk_path, r.alignment);
   r.points = vpts.size();
   r.before = cal::evaluate(s.nominal, cal::initial_params(s.bounds), vpts, &r.residual_before);
-  r.after = cal::evaluate(s.nominal, cal::estimates(report), vpts, &r.residual_after);
+  r.after = cal::evaluate(s.nominal, x, vpts, &r.residual_after);
   std::vector<std::int64_t> t;
   for (const auto& p : vpts) t.push_back(p.utime_us);
   d.validation_utime.push_back(std::move(t));
@@ -275,6 +365,9 @@ std::string provenance_notes(const CalibrateOptions& o, const Setup& s, const ca
   if (!held.empty()) notes += "; unidentifiable, held at prior: " + held;
   if (!gauge.empty()) notes += "; gauge-dependent (follow the held priors): " + gauge;
   if (!bound.empty()) notes += "; at bound: " + bound;
+  if (d.clock_offset_s != 0) {
+    notes += "; mocap clock aligned by " + std::to_string(d.clock_offset_s) + " s (speed profiles)";
+  }
   if (report.time_offset_s) notes += "; time offset " + mm(*report.time_offset_s) + " ms";
   for (const auto& v : d.validation) {
     notes += "; validate " + v.name + ": RMS " + mm(v.after.rms_m) + " mm";
@@ -302,9 +395,14 @@ void write_calibration(const CalibrateOptions& o, const Setup& s, const cal::Rep
 void write_residuals(const CalibrateOptions& o, const cal::Report& report, const Data& d) {
   if (o.plot.empty() && o.residuals.empty()) return;
   std::string csv = o.residuals;
-  if (csv.empty()) {
+  if (csv.empty()) {  // next to the figure: x.png -> x_residuals.csv, x_residuals.png ->
+                      // x_residuals.csv
     const auto dot = o.plot.rfind('.');
-    csv = (dot == std::string::npos ? o.plot : o.plot.substr(0, dot)) + "_residuals.csv";
+    const std::string stem = dot == std::string::npos ? o.plot : o.plot.substr(0, dot);
+    const std::string tag = "_residuals";
+    const bool tagged =
+        stem.size() >= tag.size() && stem.compare(stem.size() - tag.size(), tag.size(), tag) == 0;
+    csv = stem + (tagged ? "" : tag) + ".csv";
   }
   std::vector<std::int64_t> t;
   for (const auto& pt : d.points) t.push_back(pt.utime_us);
@@ -329,24 +427,84 @@ void check_outputs(const CalibrateOptions& o) {
   if (!o.plot.empty()) files::check_output(o.plot, oo);
 }
 
+// The clock offset found: coarse + τ, and where the capture's first frame
+// falls on the encoder clock when that is the epoch's.
+void print_clock_offset(const Data& d, const cal::Report& report) {
+  const double offset = d.clock_offset_s + *report.time_offset_s;
+  std::printf(
+      "Clock offset (encoder time = mocap time + offset): %.6f s ± %.3f ms (coarse %.6f s "
+      "from the speed profiles, refined by %+.3f ms in the least squares)\n",
+      offset, report.time_offset_std_s.value_or(0) * 1e3, d.clock_offset_s,
+      *report.time_offset_s * 1e3);
+  if (offset > 1e9) {
+    const auto whole = static_cast<std::time_t>(std::floor(offset));
+    std::tm tm{};
+    gmtime_r(&whole, &tm);
+    char buf[40];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
+    std::printf("  the capture's time 0 is %s.%06dZ on the encoder clock\n", buf,
+                static_cast<int>(std::llround((offset - std::floor(offset)) * 1e6)) % 1000000);
+  }
+  std::fflush(stdout);
+}
+
+// The rig's recorded calibration against the bounds: a start outside them
+// cannot be reached, whatever the data say.
+void check_recorded_against_bounds(const Setup& s) {
+  if (!s.encoders.read.recorded_offsets_rad) return;
+  const auto& off = *s.encoders.read.recorded_offsets_rad;
+  std::string outside;
+  for (int j = 0; j < cal::kJoints; ++j) {
+    const auto& b = s.bounds.params[cal::kTheta1 + j];
+    if (off[j] >= b.lower && off[j] <= b.upper) continue;
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%s %.2f outside %.2f..%.2f", cal::param_key(cal::kTheta1 + j),
+                  cal::to_display(cal::kTheta1 + j, off[j]),
+                  cal::to_display(cal::kTheta1 + j, b.lower),
+                  cal::to_display(cal::kTheta1 + j, b.upper));
+    outside += (outside.empty() ? "" : ", ") + std::string(buf);
+  }
+  if (!outside.empty()) {
+    std::cout << "WARNING: the rig's calibration " << s.encoders.read.recorded_calibration
+              << " has encoder offsets outside the bounds of " << s.bounds.source << ": " << outside
+              << ". Are these bounds for this rig?" << std::endl;
+  }
+}
+
 int run_calibrate(const CalibrateOptions& o) {
   check_outputs(o);
   const Setup s = load_setup(o);
+  check_recorded_against_bounds(s);
   Data d;
   d.encoders = read_encoders(o.encoders, o, s.encoders);
-  const cal::MarkerSeries mk = read_markers(o.markers, o, s);
   if (!o.quiet) {
     std::cout << "encoders " << o.encoders << ": " << d.encoders.samples.size() << " samples"
               << std::endl;
     for (const auto& n : d.encoders.notes) std::cout << "  " << n << std::endl;
   }
-  cal::AlignmentStats st;
-  d.points = align_points(d.encoders, mk, alignment_options(o, s.bounds), s, o.markers, st);
+  cal::SolveOptions so = solve_options(o);
+  cal::AlignmentOptions ao = alignment_options(o, s.bounds);
+  {
+    Markers mk = read_markers(o.markers, o, s);
+    if (align_clocks(o, d.encoders, mk)) {
+      d.clock_offset_s =
+          coarse_align(o.markers, s.nominal, cal::initial_params(s.bounds), d.encoders, mk);
+      // Refined in the least squares: the speed profiles of a model at its
+      // initial guesses can put the coarse offset tens of ms off.
+      so.estimate_time_offset = true;
+      so.time_offset = coarse_refinement(s.bounds.time_offset);
+      ao = alignment_options(o, s.bounds);
+      ao.guard_us = static_cast<std::int64_t>(
+          1e6 * std::max(std::abs(so.time_offset->lower_s), std::abs(so.time_offset->upper_s)));
+    }
+    cal::AlignmentStats st;
+    d.points = align_points(d.encoders, mk, ao, o.markers, st);
+  }
   d.inputs = {o.encoders, o.markers};
-  const cal::Report report =
-      cal::calibrate(s.nominal, d.points, s.bounds, solve_options(o), &d.encoders);
+  const cal::Report report = cal::calibrate(s.nominal, d.points, s.bounds, so, &d.encoders);
   for (const std::string& v : o.validate) validate_one(v, o, s, report, d);
   cal::print_report(std::cout, report, d.validation);
+  if (d.clock_offset_s != 0 && report.time_offset_s) print_clock_offset(d, report);
   write_calibration(o, s, report, d);
   write_residuals(o, report, d);
   return kExitOk;
@@ -364,7 +522,9 @@ EXODAQ_REGISTER_COMMAND(
                      "encoder log: CSV utime_us,j1_rad..j6_rad[,homed_mask,fault_mask], the CSV "
                      "of exodaq export, or an LCM log (lcm-logger, exodaq replay)")
           ->required();
-      app.add_option("--markers", o->markers, "mocap CSV utime_us,x_mm,y_mm,z_mm[,marker_id]")
+      app.add_option("--markers", o->markers,
+                     "motion capture: the long CSV utime_us,x_mm,y_mm,z_mm[,marker_id], C3D, or a "
+                     "Vicon Nexus or OptiTrack Motive CSV export (told apart by content)")
           ->required();
       app.add_option("--bounds", o->bounds, "bounds and initial guesses (YAML)")->required();
       app.add_option("-o,--out", o->out, "calibration file to write")->required();
@@ -383,13 +543,22 @@ EXODAQ_REGISTER_COMMAND(
       app.add_option("--robust-scale-mm", o->robust_scale_mm,
                      "residual per axis where the robust loss bends (default 1 mm)");
       app.add_flag("--estimate-time-offset", o->estimate_time_offset,
-                   "estimate a constant offset between the two clocks");
+                   "estimate a constant offset between the two clocks within the bounds file's "
+                   "time_offset_ms");
+      app.add_option("--align-time", o->align_time,
+                     "align the mocap clock to the encoders' by the speed profiles, then refine "
+                     "in the least squares: auto (when the markers carry no epoch or lie outside "
+                     "the encoder log), on, off")
+          ->check(CLI::IsMember({"auto", "on", "off"}));
       app.add_option("--plot", o->plot, "residual figure (PNG; needs python3-matplotlib)");
       app.add_option("--residuals", o->residuals, "residual CSV (default: next to --plot)");
       app.add_option("--max-points", o->max_points,
-                     "use at most N points of each marker, evenly spread");
+                     "use at most N points of each marker, evenly spread (default 2000)")
+          ->check(CLI::Range(1, 10000));
       auto* id =
-          app.add_option("--marker-id", o->marker_id, "marker to use when the CSV holds several");
+          app.add_option("--marker-id", o->marker_id,
+                         "marker to use when the file holds several: its id, or its label in a "
+                         "C3D, Vicon or Motive file");
       app.add_option("--marker-layout", o->marker_layout,
                      "several markers: which marker_id sits where on the hand and on the base "
                      "(YAML, config/calibration/markers_example.yaml)")

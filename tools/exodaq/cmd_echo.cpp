@@ -3,13 +3,17 @@
 // -o FILE) one CSV line per message of the chosen channel, header first, in
 // the schema of docs/messages.md. --count/--duration make it finite for
 // scripts and tests. A write that fails (full disk, closed pipe) ends echo
-// with exit 1 and the reason.
+// with exit 1 and the reason; so does nothing received (no file written).
+// "received %" counts the cycles the daemon published (its statuses say which
+// seq it skipped); interleaved or repeated seq of one run id is warned of.
 #include <unistd.h>
 
 #include <csignal>
 #include <cstdio>
+#include <map>
 #include <numbers>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -20,6 +24,7 @@
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/flag_names.hpp"
+#include "exodaq/messages/seq_account.hpp"
 #include "exodaq/messages/subscriber.hpp"
 #include "live_rig.hpp"
 #include "rate_meter.hpp"
@@ -72,6 +77,8 @@ class Table {
     } else if (const auto* s = std::get_if<status_t>(&r.msg)) {
       status_ = *s;
       status_local_ns_ = local_ns;
+      const msg::DaemonCounts c = msg::daemon_counts(*s);
+      meter_.add_status(s->run_id, c.seq, c.unpublished);
     } else if (const auto* e = std::get_if<encoder_raw_t>(&r.msg)) {
       raw_ = *e;
     }
@@ -204,6 +211,50 @@ class CsvEcho {
   std::vector<std::string> values_;
 };
 
+// Each run's per-cycle seq on the rig's channels and its statuses: repeated
+// or interleaved seq of one run id is said once per run (a second stream with
+// the run's id: replay --live of a live run, a forged message); at the end,
+// the chosen channel's cycles, missing ones split by the daemon's counters.
+class SeqWatch {
+ public:
+  void on(const msg::Received& r) {
+    const auto parts = msg::split_channel(r.channel);
+    if (!parts) return;
+    const msg::Stamp st = msg::stamp_of(r.msg);
+    if (msg::is_startup_message(st)) return;
+    msg::RunAccount& a = runs_[{parts->prefix, st.run_id}];
+    if (const auto* s = std::get_if<status_t>(&r.msg)) {
+      a.add_status(msg::daemon_counts(*s));
+      return;
+    }
+    const msg::Kind k = msg::kind_of(r.msg);
+    const std::int64_t last = a.last_seq(k);
+    if (a.add(k, st.seq) == msg::SeqStep::kRepeat &&
+        warned_.insert({parts->prefix, st.run_id}).second) {
+      print_error("WARNING: run " + msg::run_id_text(st.run_id) + " on prefix '" + parts->prefix +
+                  "': seq " + std::to_string(st.seq) + " on " + r.channel + " after seq " +
+                  std::to_string(last) +
+                  ": interleaved or repeated seq of one run id (a second stream with this run "
+                  "id: replay --live of a live run?); rows of both are shown");
+    }
+  }
+  // One line per run of `kind` on `prefix` ("" when none).
+  std::vector<std::string> describe(const std::string& prefix, msg::Kind kind) const {
+    std::vector<std::string> out;
+    for (const auto& [key, a] : runs_) {
+      if (key.first != prefix) continue;
+      const msg::SeqTally t = a.tally(kind);
+      if (t.received > 0)
+        out.push_back("run " + msg::run_id_text(key.second) + ": " + msg::describe(t));
+    }
+    return out;
+  }
+
+ private:
+  std::map<std::pair<std::string, std::int64_t>, msg::RunAccount> runs_;
+  std::set<std::pair<std::string, std::int64_t>> warned_;
+};
+
 // What one echo run shares between its subscriptions and its loop.
 struct EchoRun {
   const EchoOptions& opt;
@@ -214,6 +265,7 @@ struct EchoRun {
   Table table;
   int64_t received = 0;     // messages on the chosen channel
   std::string write_error;  // the first failed write (stops the loop)
+  SeqWatch seq;
   explicit EchoRun(const EchoOptions& o) : opt(o), table(o) {}
 };
 
@@ -221,12 +273,18 @@ void subscribe(EchoRun& run, msg::Subscriber& subscriber) {
   if (run.csv) {
     subscriber.subscribe(run.channel, run.kind, [&run](const msg::Received& r) {
       if ((run.opt.count > 0 && run.received >= run.opt.count) || !run.write_error.empty()) return;
+      run.seq.on(r);
       try {
         if (run.csv_out->on(r)) ++run.received;
       } catch (const files::FileError& e) {  // not through LCM's C frames
         run.write_error = e.what();
       }
     });
+    // The rig's statuses, for the account of a per-cycle channel (not printed).
+    if (run.kind && msg::is_per_cycle(*run.kind)) {
+      subscriber.subscribe(msg::channel_name(run.opt.rig.prefix, msg::Kind::kStatus),
+                           msg::Kind::kStatus, [&run](const msg::Received& r) { run.seq.on(r); });
+    }
     return;
   }
   std::vector<std::string> channels;
@@ -235,6 +293,7 @@ void subscribe(EchoRun& run, msg::Subscriber& subscriber) {
   for (const auto& c : channels) {
     subscriber.subscribe(c, std::nullopt, [&run, c](const msg::Received& r) {
       run.table.on(r, mono_now_ns());
+      run.seq.on(r);
       if (c == run.channel) ++run.received;
     });
   }
@@ -311,6 +370,16 @@ int run_echo(EchoOptions opt) {
     print_error(std::to_string(run.received) + " messages on " + run.channel + " from " +
                 opt.rig.url + ", " + std::to_string(subscriber.undecodable()) + " undecodable");
   }
+  if (run.received == 0) {
+    // Nothing to show: no file is written, and the exit code says so.
+    if (!run.csv) std::fputs("\x1b[?25h\n", stdout);
+    if (rc != kExitOk) return rc;  // already said (fewer than --count)
+    print_error("nothing received on " + run.channel + " from " + opt.rig.url +
+                (opt.duration > 0 ? " within " + msg::csv::number(opt.duration) + " s" : "") +
+                " (is the daemon running, with this lcm.url and prefix?)" +
+                (run.csv && opt.out != "-" ? "; " + opt.out + " not written" : ""));
+    return kExitFailure;
+  }
   if (run.csv) {
     run.csv_out->commit();  // throws FileError with the reason
   } else {
@@ -318,6 +387,9 @@ int run_echo(EchoOptions opt) {
     std::fputs("\x1b[?25h", stdout);
   }
   std::fflush(stdout);
+  if (run.kind && msg::is_per_cycle(*run.kind)) {
+    for (const auto& line : run.seq.describe(opt.rig.prefix, *run.kind)) print_note(line);
+  }
   return rc;
 }
 

@@ -9,6 +9,7 @@
 
 #include "command.hpp"
 #include "exodaq/config/model_file.hpp"
+#include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
 #include "json_out.hpp"
 

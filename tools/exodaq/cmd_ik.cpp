@@ -14,6 +14,7 @@
 
 #include "command.hpp"
 #include "exodaq/config/model_file.hpp"
+#include "exodaq/config/yaml_reader.hpp"
 #include "exodaq/kinematics/ik.hpp"
 #include "json_out.hpp"
 

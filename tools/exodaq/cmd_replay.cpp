@@ -2,9 +2,11 @@
 // offsets, kinematics, faults) with a configuration's model and calibration,
 // and write the results as an LCM log, or publish them live over LCM at the
 // recording's pace (docs/replay.md).
-//   exodaq replay IN -c C (-o OUT.lcm | --live [--speed 1|4|0.5] [--url URL])
-//                 [--format auto|lcm|candump] [--calibration FILE]
-//                 [--channel NAME] [-p PREFIX] [-q] [-v]
+//   exodaq replay IN -c C (-o OUT.lcm | --live [--speed 1|4|0.5] [--url URL]
+//                 [--share-channels]) [--format auto|lcm|candump]
+//                 [--calibration FILE] [--channel NAME] [-p PREFIX] [-q] [-v]
+// Exit 1 when the input was damaged or malformed (a damaged or cut LCM log,
+// candump lines that do not parse): the output holds what could be replayed.
 // The output is written as a files::OutputFile (through msg::LogWriter): it
 // appears complete or not at all, and never replaces an input.
 //
@@ -12,7 +14,10 @@
 // a file they run flat out (the output does not depend on pacing: same input,
 // config and calibration, same bytes); --live starts cycle k at
 // (recorded_k - recorded_0) / speed after the first and publishes on LCM
-// through the daemon's own sink, with the daemon's channels and types.
+// through the daemon's own sink, with the daemon's channels and types, after
+// listening on them first: a live run heard there is refused (two streams,
+// one run id, interleaved), unless --share-channels. A replay's joint states
+// carry SAMPLE_REPLAY and its statuses source "replay".
 #include <signal.h>
 #include <time.h>
 #include <unistd.h>
@@ -40,6 +45,7 @@
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/message.hpp"
+#include "exodaq/messages/subscriber.hpp"
 
 namespace exodaq::tools {
 namespace {
@@ -162,6 +168,7 @@ struct ReplayOptions {
   std::string channel;
   std::string prefix;
   bool prefix_given = false;
+  bool share_channels = false;
 };
 
 std::string hex_bytes(const std::string& b) {
@@ -338,6 +345,11 @@ void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
         "%lld messages of other runs skipped\n",
         ll(summary.events), ll(summary.samples), ll(summary.missing), ll(summary.skipped_warmup),
         ll(summary.skipped_other_runs));
+    if (summary.damaged_stretches > 0) {
+      std::printf("  damaged: %lld stretch%s of the log, %lld cycles lost with them (below)\n",
+                  ll(summary.damaged_stretches), summary.damaged_stretches == 1 ? "" : "es",
+                  ll(summary.damaged_cycles));
+    }
     if (summary.resumed_at_seq >= 0) {
       std::printf("  homing: continued from the live run's record of seq %lld (%lld records)\n",
                   ll(summary.resumed_at_seq), ll(summary.homing_records));
@@ -353,8 +365,9 @@ void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
 }
 
 // Problems in the input, with their place (file:line for candump, the event
-// number for LCM), on stderr even with -q; -v lists every one.
-void report_issues(const drivers::ReplaySource& replay, const std::string& input) {
+// number for LCM), on stderr even with -q; -v lists every one. True when any
+// is damage or a malformed input (exit 1), not only notes.
+bool report_issues(const drivers::ReplaySource& replay, const std::string& input) {
   const drivers::ReplayLoadSummary& summary = replay.summary();
   const auto ll = [](std::int64_t v) { return static_cast<long long>(v); };
   if (summary.format == drivers::ReplayFormat::kLcm && summary.resumed_at_seq < 0 &&
@@ -381,6 +394,36 @@ void report_issues(const drivers::ReplaySource& replay, const std::string& input
       std::fprintf(stderr, "  ... and %lld more\n", ll(total - static_cast<std::int64_t>(kShown)));
     }
   }
+  return summary.bad_lines > 0 ||
+         std::any_of(issues.begin(), issues.end(), [](const auto& i) { return i.problem; });
+}
+
+// --live: who already publishes on the output channels. Listens on the
+// prefix's status and joint-state channels for two status periods (at least
+// 250 ms, the daemon's own start-up window, instance_guard.hpp); the first
+// message with a run id names the publisher ("" when none).
+std::string publisher_heard(const std::string& url, const std::string& prefix,
+                            double status_rate_hz) {
+  msg::Subscriber sub(url);
+  std::string heard;
+  const auto note = [&heard](std::int64_t run_id, const std::string& what) {
+    if (heard.empty() && run_id != 0) heard = "run id " + msg::run_id_text(run_id) + what;
+  };
+  sub.subscribe(msg::channel_name(prefix, msg::Kind::kStatus), msg::Kind::kStatus,
+                [&note](const msg::Received& r) {
+                  const auto& s = std::get<status_t>(r.msg);
+                  note(s.run_id, " (rig " + msg::printable(s.rig) + ", source " +
+                                     msg::printable(s.source) + ")");
+                });
+  sub.subscribe(
+      msg::channel_name(prefix, msg::Kind::kJointState), msg::Kind::kJointState,
+      [&note](const msg::Received& r) { note(std::get<joint_state_t>(r.msg).run_id, ""); });
+  const double window_ms = std::max(250.0, status_rate_hz > 0.0 ? 2000.0 / status_rate_hz : 250.0);
+  const std::int64_t end = mono_now_ns() + static_cast<std::int64_t>(window_ms * 1e6);
+  for (std::int64_t now = mono_now_ns(); now < end && heard.empty(); now = mono_now_ns()) {
+    if (sub.handle(static_cast<int>(std::max<std::int64_t>(1, (end - now) / 1'000'000))) < 0) break;
+  }
+  return heard;
 }
 
 // The options that go together, and --speed as a number (0: max); nullopt
@@ -389,6 +432,10 @@ std::optional<double> replay_speed(const ReplayOptions& o, bool speed_given) {
   if (o.live == !o.out.empty()) {
     print_error(o.live ? "--live publishes on LCM; it takes no --out"
                        : "give --out FILE.lcm (write a log) or --live (publish on LCM)");
+    return std::nullopt;
+  }
+  if (!o.live && o.share_channels) {
+    print_error("--share-channels goes with --live (a file shares no channels)");
     return std::nullopt;
   }
   if (!o.live && ((speed_given && o.speed != "max") || !o.url.empty())) {
@@ -450,6 +497,15 @@ int run_replay(const ReplayOptions& o, bool speed_given) {
   } else if (summary.format == drivers::ReplayFormat::kLcm) {
     prefix = summary.prefix;  // the recording's channel names
   }
+  if (o.live && !o.share_channels) {
+    if (const std::string heard = publisher_heard(cfg.lcm.url, prefix, cfg.loop.status_rate_hz);
+        !heard.empty()) {
+      print_error(heard + " publishes on LCM " + cfg.lcm.url + " with prefix '" + prefix +
+                  "': a replay there would interleave with it (two streams on one channel set); "
+                  "give another --prefix or --url, or --share-channels to publish anyway");
+      return kExitFailure;
+    }
+  }
 
   // The daemon's wiring, with the recording as source, a log file as sink
   // (--live: the daemon's LCM sink on lcm.url), the recording's run_id and
@@ -471,10 +527,18 @@ int run_replay(const ReplayOptions& o, bool speed_given) {
   const ReplayRun run = drive_cycles(*acq, *replay, speed, quiet, sink);
   if (sink != nullptr) sink->finish();  // throws with the reason when a write failed
   if (!quiet) print_report(o, cfg, *replay, prefix, sink, *acq, run, load_s);
-  report_issues(*replay, o.input);
+  const bool damaged = report_issues(*replay, o.input);
   if (g_interrupted.load()) {
     print_error("interrupted after " + std::to_string(run.cycles) + " cycles" +
                 (sink != nullptr ? "; " + o.out + " holds them" : std::string()));
+    return kExitFailure;
+  }
+  if (damaged) {
+    // The output holds what could be replayed; the exit code says the input was not whole.
+    print_error(o.input + ": damaged or malformed input (problems above)" +
+                (summary.damaged_cycles > 0
+                     ? "; " + std::to_string(summary.damaged_cycles) + " cycles lost with it"
+                     : std::string()));
     return kExitFailure;
   }
   return kExitOk;
@@ -494,6 +558,9 @@ std::function<int()> setup_replay(CLI::App& sub) {
                      "with --live: x real time (1 default, 4, 0.5, ...) or 'max'; files are "
                      "always written flat out");
   sub.add_option("--url", o->url, "with --live: LCM URL (default: the config's lcm.url)");
+  sub.add_flag("--share-channels", o->share_channels,
+               "with --live: publish even where another publisher (a live run) is heard on the "
+               "output channels (tests)");
   sub.add_option("--format", o->format, "input format")
       ->check(CLI::IsMember({"auto", "lcm", "candump"}));
   sub.add_option("--calibration", o->calibration,

@@ -1,9 +1,11 @@
 // exodaq shoulder-cor: the shoulder's centre of rotation by humerus elevation
 // from motion capture of torso and humerus markers (seed 001 §II.B, Table II).
-//   exodaq shoulder-cor --markers MOCAP.csv --torso 1,2,3,4,5 --humerus 11,...,17
+//   exodaq shoulder-cor --markers MOCAP --torso 1,2,3,4,5 --humerus 11,...,17
 //                       --torso-axis 1,2 --humerus-axis 11,12 [--bin-deg 20]
 //                       [--pairs 2000] [--min-rotation-deg 15] [--csv bins.csv] [--plot cor.png]
-// docs/shoulder-cor.md describes the recording, the method and the output.
+// MOCAP: the long CSV, C3D, a Vicon Nexus or OptiTrack Motive CSV export;
+// markers by id or by label. docs/shoulder-cor.md describes the recording,
+// the method and the output.
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -33,10 +35,12 @@ constexpr double kTable2Mm[] = {0, 4, 13, 27, 43, 62};
 
 struct CorCommandOptions {
   std::string markers, csv, plot;
-  std::vector<int> torso, humerus, torso_axis, humerus_axis;
+  std::vector<std::string> torso, humerus, torso_axis, humerus_axis;  // ids or labels
   double bin_deg = 20.0, min_rotation_deg = 15.0;
   std::size_t pairs = 2000, min_axes = 10;
   std::uint64_t seed = 1;
+  std::string centre_model = "moving";
+  double max_ci_mm = 2.0;
 };
 
 std::string f(const char* format, double v) {
@@ -45,12 +49,13 @@ std::string f(const char* format, double v) {
   return buf;
 }
 
-int index_of(const std::vector<int>& ids, int id, const char* option, const char* group) {
+int index_of(const std::vector<std::string>& ids, const std::string& id, const char* option,
+             const char* group) {
   for (std::size_t k = 0; k < ids.size(); ++k) {
     if (ids[k] == id) return static_cast<int>(k);
   }
-  throw std::invalid_argument(std::string(option) + ": marker " + std::to_string(id) +
-                              " is not one of the " + group + " markers");
+  throw std::invalid_argument(std::string(option) + ": marker " + id + " is not one of the " +
+                              group + " markers");
 }
 
 // Marker ids: at least three per segment, none twice; the axis markers are
@@ -59,12 +64,10 @@ cal::ShoulderAxes check_ids(const CorCommandOptions& o) {
   if (o.torso.size() < 3 || o.humerus.size() < 3) {
     throw std::invalid_argument("--torso and --humerus need at least 3 markers each (seed 001)");
   }
-  std::set<int> all;
+  std::set<std::string> all;
   for (const auto* ids : {&o.torso, &o.humerus}) {
-    for (int id : *ids) {
-      if (!all.insert(id).second) {
-        throw std::invalid_argument("marker " + std::to_string(id) + " is given twice");
-      }
+    for (const std::string& id : *ids) {
+      if (!all.insert(id).second) throw std::invalid_argument("marker " + id + " is given twice");
     }
   }
   cal::ShoulderAxes a;
@@ -78,15 +81,19 @@ cal::ShoulderAxes check_ids(const CorCommandOptions& o) {
   return a;
 }
 
-// Rows of the CSV grouped into frames by utime_us; markers not seen are NaN.
+// The samples grouped into frames by time; markers not seen are NaN.
 std::vector<cal::MocapFrame> read_frames(const CorCommandOptions& o, std::size_t& other_rows) {
-  std::vector<int> ids = o.torso;
-  ids.insert(ids.end(), o.humerus.begin(), o.humerus.end());
-  const cal::MarkerSeries series = cal::read_marker_csv_ids(o.markers, ids);
+  std::vector<cal::MarkerRef> refs;
+  for (const auto* ids : {&o.torso, &o.humerus}) {
+    for (const std::string& id : *ids) refs.push_back(cal::marker_ref(id));
+  }
+  const cal::MarkerSeries series = cal::read_markers(o.markers, refs);
   other_rows = series.other_ids;
-  std::map<int, std::pair<bool, int>> column;  // id -> (torso?, column)
-  for (std::size_t k = 0; k < o.torso.size(); ++k) column[o.torso[k]] = {true, int(k)};
-  for (std::size_t k = 0; k < o.humerus.size(); ++k) column[o.humerus[k]] = {false, int(k)};
+  std::map<int, std::pair<bool, int>> column;  // resolved id -> (torso?, column)
+  for (std::size_t k = 0; k < series.ids.size(); ++k) {
+    const bool torso = k < o.torso.size();
+    column[series.ids[k]] = {torso, static_cast<int>(torso ? k : k - o.torso.size())};
+  }
   const double nan = std::numeric_limits<double>::quiet_NaN();
   std::map<std::int64_t, cal::MocapFrame> frames;
   for (const cal::MarkerSample& s : series.samples) {
@@ -113,13 +120,20 @@ std::string table2(const cal::CorBin& b, double bin_deg) {
   return f("%18.0f", kTable2Mm[k]);
 }
 
+std::string pm(double v, double ci, const char* format) {
+  return f(format, v * 1e3) + " ±" + f("%5.2f", ci * 1e3);
+}
+
 void print_result(const cal::CorResult& r, const CorCommandOptions& o) {
+  const bool table2_bins = std::abs(o.bin_deg - 20.0) < 1e-9;
   std::cout << "\n=== Shoulder centre of rotation by humerus elevation (seed 001 §II.B) ===\n"
             << "Torso frame = the camera frame of the first frame with every torso marker; "
-               "vertical = cranial (torso axis markers).\n\n"
-            << "Humerus elevation  frames   axes  outliers  CoR x mm CoR y mm CoR z mm"
-               " vertical mm horizontal mm axis RMS mm"
-            << (std::abs(o.bin_deg - 20.0) < 1e-9 ? " seed 001 Table II" : "") << "\n";
+               "vertical = cranial (torso axis markers).\n"
+            << "Every value ± its 95 % confidence half-width; vertical and horizontal relative to "
+               "the first bin (both bins' uncertainty combined).\n\n"
+            << "Humerus elevation  frames   axes  outliers spread         CoR x mm         CoR y mm"
+               "         CoR z mm      vertical mm    horizontal mm axis RMS mm"
+            << (table2_bins ? " seed 001 Table II" : "") << "\n";
   for (const auto& b : r.bins) {
     const std::string range =
         f("%.0f", b.elevation_lo_rad / kDeg) + "-" + f("%.0f", b.elevation_hi_rad / kDeg) + " deg";
@@ -130,10 +144,13 @@ void print_result(const cal::CorResult& r, const CorCommandOptions& o) {
       std::cout << "   no centre: " << b.why << "\n";
       continue;
     }
-    std::cout << f("%10.1f", b.centre.x() * 1e3) << f("%9.1f", b.centre.y() * 1e3)
-              << f("%9.1f", b.centre.z() * 1e3) << f("%12.1f", b.vertical_m * 1e3)
-              << f("%14.1f", b.horizontal_m * 1e3) << f("%12.2f", b.axis_rms_m * 1e3)
-              << table2(b, o.bin_deg) << "\n";
+    std::cout << f("%6.0f", b.axis_spread_rad / kDeg) << " deg"
+              << pm(b.centre.x(), b.ci95_m.x(), "%10.1f")
+              << pm(b.centre.y(), b.ci95_m.y(), "%10.1f")
+              << pm(b.centre.z(), b.ci95_m.z(), "%10.1f")
+              << pm(b.vertical_m, b.vertical_ci95_m, "%10.1f")
+              << pm(b.horizontal_m, b.horizontal_ci95_m, "%10.1f")
+              << f("%12.2f", b.axis_rms_m * 1e3) << table2(b, o.bin_deg) << "\n";
   }
   double vmin = 0, vmax = 0, hmin = 0, hmax = 0;
   for (const auto& b : r.bins) {
@@ -144,12 +161,18 @@ void print_result(const cal::CorResult& r, const CorCommandOptions& o) {
   std::cout << "CoR range over the bins: vertical " << f("%.1f", (vmax - vmin) * 1e3)
             << " mm, horizontal " << f("%.1f", (hmax - hmin) * 1e3)
             << " mm (seed 001 Table I, macaque: cranial 53, ventral 37, lateral 34 mm)\n";
+  for (const auto& b : r.bins) {
+    if (!b.valid || b.warning.empty()) continue;
+    std::cout << "WARNING: bin " << f("%.0f", b.elevation_lo_rad / kDeg) << "-"
+              << f("%.0f", b.elevation_hi_rad / kDeg) << " deg: " << b.warning << "\n";
+  }
 }
 
 void write_csv(const std::string& path, const cal::CorResult& r, const std::string& input) {
   std::ostringstream out;
   out << "bin,elevation_lo_deg,elevation_hi_deg,mean_elevation_deg,frames,pairs,axes,outliers,"
-         "valid,x_mm,y_mm,z_mm,vertical_mm,horizontal_mm,axis_rms_mm\n";
+         "valid,x_mm,y_mm,z_mm,vertical_mm,horizontal_mm,axis_rms_mm,x_ci95_mm,y_ci95_mm,"
+         "z_ci95_mm,vertical_ci95_mm,horizontal_ci95_mm,axis_spread_deg,flags\n";
   for (std::size_t k = 0; k < r.bins.size(); ++k) {
     const auto& b = r.bins[k];
     out << k << "," << f("%.3f", b.elevation_lo_rad / kDeg) << ","
@@ -157,10 +180,15 @@ void write_csv(const std::string& path, const cal::CorResult& r, const std::stri
         << "," << b.frames << "," << b.pairs << "," << b.axes << "," << b.outliers << ","
         << (b.valid ? 1 : 0);
     for (double v :
-         {b.centre.x(), b.centre.y(), b.centre.z(), b.vertical_m, b.horizontal_m, b.axis_rms_m}) {
+         {b.centre.x(), b.centre.y(), b.centre.z(), b.vertical_m, b.horizontal_m, b.axis_rms_m,
+          b.ci95_m.x(), b.ci95_m.y(), b.ci95_m.z(), b.vertical_ci95_m, b.horizontal_ci95_m}) {
       out << "," << f("%.4f", v * 1e3);
     }
-    out << "\n";
+    std::string flags;
+    if (b.vertical_poor) flags += "vertical";
+    if (b.horizontal_poor) flags += std::string(flags.empty() ? "" : ";") + "horizontal";
+    if (b.ill_conditioned) flags += std::string(flags.empty() ? "" : ";") + "ill-conditioned";
+    out << "," << f("%.2f", b.axis_spread_rad / kDeg) << "," << flags << "\n";
   }
   files::OutputOptions oo;
   oo.inputs = {input};
@@ -169,9 +197,11 @@ void write_csv(const std::string& path, const cal::CorResult& r, const std::stri
 
 void write_outputs(const CorCommandOptions& o, const cal::CorResult& r) {
   std::string csv = o.csv;
-  if (csv.empty() && !o.plot.empty()) {
+  if (csv.empty() && !o.plot.empty()) {  // cor.png -> cor_bins.csv, cor_bins.png -> cor_bins.csv
     const auto dot = o.plot.rfind('.');
-    csv = (dot == std::string::npos ? o.plot : o.plot.substr(0, dot)) + "_bins.csv";
+    const std::string stem = dot == std::string::npos ? o.plot : o.plot.substr(0, dot);
+    const bool tagged = stem.size() >= 5 && stem.compare(stem.size() - 5, 5, "_bins") == 0;
+    csv = stem + (tagged ? "" : "_bins") + ".csv";
   }
   if (csv.empty()) return;
   write_csv(csv, r, o.markers);
@@ -198,6 +228,8 @@ int run_shoulder_cor(const CorCommandOptions& o) {
   co.min_rotation_rad = o.min_rotation_deg * kDeg;
   co.min_axes = o.min_axes;
   co.seed = o.seed;
+  co.moving_centre = o.centre_model == "moving";
+  co.max_ci95_m = o.max_ci_mm * 1e-3;
   const cal::CorResult r = cal::analyse_shoulder_cor(frames, axes, co);
   std::cout << o.markers << ": " << r.frames << " frames, " << r.frames_used << " used";
   if (r.frames_torso_missing || r.frames_humerus_missing || other_rows) {
@@ -220,12 +252,14 @@ EXODAQ_REGISTER_COMMAND(
     "(seed 001 §II.B, Table II)",
     [](CLI::App& app) -> std::function<int()> {
       auto o = std::make_shared<CorCommandOptions>();
-      app.add_option("--markers", o->markers, "mocap CSV utime_us,x_mm,y_mm,z_mm,marker_id")
+      app.add_option("--markers", o->markers,
+                     "motion capture: the long CSV utime_us,x_mm,y_mm,z_mm,marker_id, C3D, or a "
+                     "Vicon Nexus or OptiTrack Motive CSV export")
           ->required();
-      app.add_option("--torso", o->torso, "torso marker ids (3 or more)")
+      app.add_option("--torso", o->torso, "torso markers, ids or labels (3 or more)")
           ->required()
           ->delimiter(',');
-      app.add_option("--humerus", o->humerus, "upper-arm marker ids (3 or more)")
+      app.add_option("--humerus", o->humerus, "upper-arm markers, ids or labels (3 or more)")
           ->required()
           ->delimiter(',');
       app.add_option("--torso-axis", o->torso_axis,
@@ -245,6 +279,12 @@ EXODAQ_REGISTER_COMMAND(
                      "pairs turning less are rejected (default 15)");
       app.add_option("--min-axes", o->min_axes, "fewest axes for a bin's centre (default 10)");
       app.add_option("--seed", o->seed, "random pair selection (default 1)");
+      app.add_option("--centre-model", o->centre_model,
+                     "moving: the centre may move linearly with elevation within a bin (default); "
+                     "static: seed 001's centre at rest, the point closest to the axes")
+          ->check(CLI::IsMember({"moving", "static"}));
+      app.add_option("--max-ci-mm", o->max_ci_mm,
+                     "flag components whose 95 % confidence half-width exceeds this (default 2)");
       app.add_option("--csv", o->csv, "bins CSV (default: next to --plot)");
       app.add_option("--plot", o->plot, "figure (PNG; needs python3-matplotlib)");
       return [o]() -> int {

@@ -78,8 +78,12 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
       clock_error_text(s.clock_est_error_us).c_str(),
       clock_error_text(s.clock_max_error_us).c_str(), s.clock_offset_us, s.utime_correction_us,
       ll(s.clock_steps));
+  // Empty after a reload that left restart-only settings unapplied: no file
+  // describes the settings in effect (docs/messages.md).
   std::printf("config   %s  sha256 %s  reloads %d\n", s.config_path.c_str(),
-              s.config_sha256.c_str(), s.reloads);
+              s.config_sha256.empty() ? "- (restart pending: not every setting in effect)"
+                                      : s.config_sha256.c_str(),
+              s.reloads);
   std::printf("calib    %s  sha256 %s\n         %s\n", s.calibration_path.c_str(),
               s.calibration_sha256.c_str(), s.calibration_provenance.c_str());
   std::printf("%-20s %-9s %8s %8s %8s %8s  %s\n", "joint", "homing", "glitch", "lost", "stale",
@@ -92,18 +96,47 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
   }
 }
 
+// The JSON value of a status column whose number stands for something (a
+// state, a name, a flag set, an unknown), or nothing: the number as it is.
+std::optional<std::string> named_json_value(const status_t& s, const std::string& column,
+                                            const msg::csv::JointNames& joints) {
+  const auto name = [](std::string_view n) { return json_string(std::string(n)); };
+  if (column == "state") return name(msg::state_name(s.state));
+  if (column == "bus_state") return name(msg::bus_state_name(s.bus_state));
+  if (column == "clock_synchronised") return json_bool(s.clock_synchronised != 0);
+  // The kernel's "no estimate" (clock_text.hpp) is no number.
+  if (column == "clock_est_error_us") return clock_error_json(s.clock_est_error_us);
+  if (column == "clock_max_error_us") return clock_error_json(s.clock_max_error_us);
+  if (column == "foreign_run_id" && s.foreign_run_id == 0) return "null";
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    if (column == joints[i] + "_homing") return name(msg::homing_name(s.homing[i]));
+    if (column == joints[i] + std::string(msg::csv::kFlagsSuffix)) {
+      return json_strings(msg::joint_flag_list(s.joint_flags[i]));
+    }
+  }
+  return std::nullopt;
+}
+
 // One JSON object: the channel, then every column of the CSV schema under
-// its name (numbers as numbers, text as strings).
+// its name: numbers as numbers, text as strings, states and flags by name,
+// booleans as booleans, unknown and none as null (docs/messages.md, "JSON").
 void print_json(const std::string& channel, const status_t& s) {
   const msg::Message m{s};
-  const auto names = msg::csv::header(msg::Kind::kStatus, msg::csv::joints_of(m));
+  const auto joints = msg::csv::joints_of(m);
+  const auto names = msg::csv::header(msg::Kind::kStatus, joints);
   std::vector<std::string> values;
   msg::csv::append_values(m, values);
   std::string out = "{\n  \"channel\": " + json_string(channel);
   for (std::size_t i = 0; i < names.size(); ++i) {
-    out += ",\n  " + json_string(names[i]) + ": " +
-           (msg::csv::is_text_column(msg::Kind::kStatus, names[i]) ? json_string(values[i])
-                                                                   : json_value(values[i]));
+    std::string value;
+    if (auto named = named_json_value(s, names[i], joints)) {
+      value = std::move(*named);
+    } else if (msg::csv::is_text_column(msg::Kind::kStatus, names[i])) {
+      value = json_string(values[i]);
+    } else {
+      value = json_value(values[i]);
+    }
+    out += ",\n  " + json_string(names[i]) + ": " + value;
   }
   std::printf("%s\n}\n", out.c_str());
 }

@@ -172,6 +172,14 @@ int serve(const ViewOptions& o, view::ViewScene& scene, const view::SceneOptions
       if (next_tick <= now) next_tick = now + period_ns;  // fell behind: no burst of ticks
     }
   }
+  const view::HttpStats st = server.stats();
+  std::printf(
+      "exodaq view: stopped: %lld connections, %lld requests (%lld bad), %lld closed to make room, "
+      "%lld idle closed, %lld stalled closed, %lld events skipped\n",
+      static_cast<long long>(st.accepted), static_cast<long long>(st.requests),
+      static_cast<long long>(st.bad_requests), static_cast<long long>(st.evicted),
+      static_cast<long long>(st.idle_closed), static_cast<long long>(st.stalled_closed),
+      static_cast<long long>(st.skipped_events));
   return kExitOk;
 }
 

@@ -18,9 +18,16 @@ struct CsvExport {
   std::string first_run;               // run_id_text of the first row's run
   msg::csv::JointNames joint_names{};  // raw names of the first joint_state_t
   std::string rig;                     // status_t.rig of the first status message ("" if none)
-  std::string damage;                  // damaged stretches of the log ("" when none)
-  std::int64_t undecodable = 0;        // events on the rig's channels that do not decode
-  std::string note;                    // anything else the user should know ("" when none)
+  // Damage and anomalies, one line each ("" when none): damaged stretches of
+  // the log (with the cycles each cost), events that do not decode, damaged
+  // run ids, seq out of line or repeated. Any of them: exit 1.
+  std::string damage;
+  std::int64_t undecodable = 0;    // events on the rig's channels that do not decode
+  std::string note;                // anything else the user should know ("" when none)
+  std::vector<std::string> notes;  // per run: its cycles and seq holes (msg::describe)
+  std::int64_t missing = 0;        // seq numbers missing between the rows, all runs
+  std::int64_t lost = 0;  // of those, neither skipped by the daemon (its status counters) nor
+                          // lost to damage in the log: lost by the recorder or the network
 };
 
 // The channel prefix to export: `given`, or the only one the log holds.

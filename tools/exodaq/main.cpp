@@ -1,5 +1,5 @@
 // exodaq: command-line tools beside the daemon (fk, ik, echo, view, status,
-// replay, export, plot, calibrate, shoulder-cor). Each command is in its own
+// record, replay, export, plot, calibrate, shoulder-cor). Each command is in its own
 // cmd_*.cpp; this file holds what they share: the common options, the error
 // lines and the unknown-option check (command.hpp).
 #include <fcntl.h>

@@ -1,14 +1,17 @@
 #include "view_http.hpp"
 
+#include <arpa/inet.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cerrno>
 #include <cstring>
+#include <optional>
 #include <stdexcept>
 #include <utility>
 
@@ -33,8 +36,10 @@ std::string lower(std::string_view s) {
   return out;
 }
 
-// The Host header's name without the port, lower-case; empty when absent.
-std::string host_of(std::string_view head) {
+// The Host header's value, trimmed; `count` is set to how many there are.
+std::string_view host_header(std::string_view head, int& count) {
+  std::string_view found;
+  count = 0;
   for (std::size_t at = head.find('\n'); at != std::string_view::npos;) {
     const std::size_t next = head.find('\n', at + 1);
     std::string_view line =
@@ -43,20 +48,63 @@ std::string host_of(std::string_view head) {
     if (line.size() < 5 || lower(line.substr(0, 5)) != "host:") continue;
     line.remove_prefix(5);
     while (!line.empty() && (line.front() == ' ' || line.front() == '\t')) line.remove_prefix(1);
-    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.remove_suffix(1);
-    if (line.empty()) return {};
-    std::size_t end = line.find(':');
-    if (line.front() == '[') {  // [IPv6]:port
-      end = line.find(']');
-      if (end != std::string_view::npos) ++end;
-    }
-    return lower(line.substr(0, end));
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t'))
+      line.remove_suffix(1);
+    if (++count == 1) found = line;
   }
-  return {};
+  return found;
 }
 
-bool is_loopback_name(const std::string& host) {
-  return host == "localhost" || host.rfind("127.", 0) == 0 || host == "[::1]" || host == "::1";
+// An IP address literal ("127.0.0.1", "[::1]") as 16 bytes (IPv4 mapped);
+// nullopt for a name or anything else.
+std::optional<std::array<unsigned char, 16>> ip_literal(std::string_view name) {
+  std::array<unsigned char, 16> a{};
+  const std::string text(name);
+  if (text.size() > 2 && text.front() == '[' && text.back() == ']') {
+    if (inet_pton(AF_INET6, text.substr(1, text.size() - 2).c_str(), a.data()) == 1) return a;
+    return std::nullopt;
+  }
+  in_addr v4{};
+  if (inet_pton(AF_INET, text.c_str(), &v4) != 1) return std::nullopt;
+  a[10] = a[11] = 0xff;
+  std::memcpy(a.data() + 12, &v4, 4);
+  return a;
+}
+
+// The name part of a Host value ("name", "name:port", "[v6]", "[v6]:port"),
+// lower-case; nullopt when the value is not of that form (a port that is not
+// 1-5 digits, a bare IPv6 address, anything after the port).
+std::optional<std::string> host_name(std::string_view value) {
+  std::size_t end = value.find(':');
+  if (!value.empty() && value.front() == '[') {
+    end = value.find(']');
+    if (end == std::string_view::npos) return std::nullopt;
+    ++end;
+  }
+  const std::string_view name = value.substr(0, end);
+  if (name.empty()) return std::nullopt;
+  if (end < value.size()) {
+    const std::string_view port = value.substr(end);
+    if (port.size() < 2 || port.size() > 6 || port.front() != ':') return std::nullopt;
+    for (const char c : port.substr(1)) {
+      if (c < '0' || c > '9') return std::nullopt;
+    }
+  }
+  for (const char c : name) {
+    if (c <= ' ' || c == '/' || c == '@') return std::nullopt;
+  }
+  return lower(name);
+}
+
+// The client's address, for the per-client limit.
+std::string peer_text(const sockaddr_storage& a) {
+  char text[INET6_ADDRSTRLEN] = "?";
+  if (a.ss_family == AF_INET) {
+    inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in*>(&a)->sin_addr, text, sizeof text);
+  } else if (a.ss_family == AF_INET6) {
+    inet_ntop(AF_INET6, &reinterpret_cast<const sockaddr_in6*>(&a)->sin6_addr, text, sizeof text);
+  }
+  return text;
 }
 
 }  // namespace
@@ -64,6 +112,7 @@ bool is_loopback_name(const std::string& host) {
 struct HttpServer::Conn {
   enum class State { kRequest, kResponse, kStream };
   int fd = -1;
+  std::string client;  // the peer's address
   State state = State::kRequest;
   std::string in;
   std::string out;
@@ -73,6 +122,9 @@ struct HttpServer::Conn {
   bool read_closed = false;           // the peer closed its side: no more POLLIN
   bool closed = false;
   std::size_t pending() const { return out.size() - out_pos; }
+  // Connected, nothing received yet (a browser's spare connection, or a
+  // client holding a place).
+  bool idle() const { return state == State::kRequest && in.empty(); }
   void queue(std::string_view bytes, std::int64_t now_ns) {
     if (pending() == 0) last_progress_ns = now_ns;
     out += bytes;
@@ -158,6 +210,24 @@ HttpServer::~HttpServer() {
   if (listen_fd_ >= 0) ::close(listen_fd_);
 }
 
+bool HttpServer::host_allowed(std::string_view value) const {
+  if (value.empty()) return true;  // HTTP/1.0 without Host: not a browser, no rebinding
+  const auto name = host_name(value);
+  if (!name) return false;
+  if (*name == "localhost") return true;
+  const auto ip = ip_literal(*name);
+  if (!ip) return false;  // any other name
+  const auto v4 = ip_literal("127.0.0.1");
+  const auto v6 = ip_literal("[::1]");
+  if (ip == v4 || ip == v6) return true;
+  const auto bound = ip_literal(ipv6_ ? "[" + options_.bind + "]" : options_.bind);
+  if (!bound) return false;
+  // Listening on every interface: any of this host's addresses, which a
+  // rebinding cannot give (it needs a name).
+  if (bound == ip_literal("0.0.0.0") || bound == ip_literal("[::]")) return true;
+  return ip == bound;
+}
+
 std::string HttpServer::url() const {
   const std::string host = ipv6_ ? "[" + options_.bind + "]" : options_.bind;
   return "http://" + host + ":" + std::to_string(port_) + "/";
@@ -207,26 +277,67 @@ void HttpServer::service(const std::vector<pollfd>& fds, std::int64_t now_ns) {
 
 void HttpServer::accept_all(std::int64_t now_ns) {
   for (;;) {
-    const int fd = accept4(listen_fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
+    sockaddr_storage peer{};
+    socklen_t len = sizeof peer;
+    const int fd =
+        accept4(listen_fd_, reinterpret_cast<sockaddr*>(&peer), &len, SOCK_NONBLOCK | SOCK_CLOEXEC);
     if (fd < 0) {
       if (errno == EINTR || errno == ECONNABORTED) continue;
       return;  // EAGAIN, or out of descriptors: the rest wait in the backlog
     }
     ++stats_.accepted;
-    if (conns_.size() >= options_.max_connections) {
-      static constexpr std::string_view kBusy =
-          "HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n";
-      [[maybe_unused]] const auto r = send(fd, kBusy.data(), kBusy.size(), MSG_NOSIGNAL);
-      ::close(fd);
-      ++stats_.refused;
-      continue;
-    }
     auto c = std::make_unique<Conn>();
     c->fd = fd;
+    c->client = peer_text(peer);
     c->opened_ns = now_ns;
     c->last_progress_ns = now_ns;
+    make_room(c->client);
     conns_.push_back(std::move(c));
   }
+}
+
+void HttpServer::make_room(const std::string& client) {
+  std::map<std::string_view, std::size_t> held;
+  std::size_t open = 0;
+  for (const auto& c : conns_) {
+    if (c->closed) continue;
+    ++held[c->client];
+    ++open;
+  }
+  std::string_view from;
+  if (options_.max_per_client > 0 && held[client] >= options_.max_per_client) {
+    from = client;  // at its own limit: its own oldest place goes
+  } else if (options_.max_connections > 0 && open >= options_.max_connections) {
+    std::size_t most = 0;  // full: a place of the client holding the most
+    for (const auto& [who, n] : held) {
+      if (n > most) {
+        most = n;
+        from = who;
+      }
+    }
+  } else {
+    return;
+  }
+  // That client's oldest idle connection, else its oldest.
+  Conn* victim = nullptr;
+  for (const auto& c : conns_) {
+    if (c->closed || c->client != from) continue;
+    if (c->idle()) {
+      victim = c.get();
+      break;
+    }
+    if (victim == nullptr) victim = c.get();
+  }
+  if (victim == nullptr) return;
+  ++stats_.evicted;
+  if (!victim->idle() && victim->state == Conn::State::kRequest) {
+    ++stats_.bad_requests;  // an unfinished request: told why, once, without waiting
+    static constexpr std::string_view kBusy =
+        "HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n";
+    [[maybe_unused]] const auto r =
+        send(victim->fd, kBusy.data(), kBusy.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+  }
+  close_conn(*victim);
 }
 
 void HttpServer::read_from(Conn& c, std::int64_t now_ns) {
@@ -281,6 +392,8 @@ void HttpServer::answer(Conn& c, std::int64_t now_ns) {
   std::string_view target = line.substr(sp1 + 1, sp2 - sp1 - 1);
   const std::string_view version = line.substr(sp2 + 1);
   const bool head = method == "HEAD";
+  int hosts = 0;
+  const std::string_view host = host_header(std::string_view(c.in).substr(0, end), hosts);
   if (version.substr(0, 7) != "HTTP/1.") {
     ++stats_.bad_requests;
     respond(c, version.substr(0, 5) == "HTTP/" ? 505 : 400, "text/plain; charset=utf-8",
@@ -292,14 +405,15 @@ void HttpServer::answer(Conn& c, std::int64_t now_ns) {
     ++stats_.bad_requests;
     respond(c, 400, "text/plain; charset=utf-8", "the request target must be a path\n", head,
             now_ns);
-  } else if (const std::string host = host_of(std::string_view(c.in).substr(0, end));
-             is_loopback_name(options_.bind) && !host.empty() && !is_loopback_name(host)) {
-    // Listening on loopback only, asked for another name: a page elsewhere
-    // whose name was made to resolve to 127.0.0.1 (DNS rebinding).
+  } else if (hosts > 1 || !host_allowed(host)) {
+    // Asked for a name that is not this server's: a page elsewhere whose name
+    // was made to resolve to this address (DNS rebinding).
     ++stats_.bad_requests;
     respond(c, 403, "text/plain; charset=utf-8",
-            "Host '" + host + "' is not this computer's loopback: open " + url() + "\n", head,
-            now_ns);
+            (hosts > 1 ? std::string("more than one Host header")
+                       : "Host '" + std::string(host) + "' is not an address of this server") +
+                ": open " + url() + "\n",
+            head, now_ns);
   } else {
     target = target.substr(0, target.find_first_of("?#"));
     if (auto s = streams_.find(target); s != streams_.end() && !head) {
@@ -365,6 +479,11 @@ void HttpServer::write_to(Conn& c, std::int64_t now_ns) {
 }
 
 void HttpServer::expire(Conn& c, std::int64_t now_ns) {
+  if (c.idle() && now_ns - c.opened_ns > options_.idle_timeout_ns) {
+    ++stats_.idle_closed;
+    close_conn(c);  // a connection opened and never used (a browser's spare): no answer
+    return;
+  }
   if (c.state == Conn::State::kRequest && now_ns - c.opened_ns > options_.request_timeout_ns) {
     if (c.in.empty()) {
       close_conn(c);  // a connection opened and never used (a browser's spare): no answer

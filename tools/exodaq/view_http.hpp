@@ -6,7 +6,13 @@
 // A stream client that does not keep up has events skipped (counted) once its
 // backlog is full, and is closed when it accepts no byte for stall_timeout; a
 // connection that does not finish its request within request_timeout is
-// closed. Not for the daemon: allocation is fine here. docs/operations.md.
+// closed; a connection that sends nothing within idle_timeout is closed, and
+// a new connection beyond the total or per-client limit closes an older one
+// of the busiest client, so a few clients holding connections cannot lock
+// the page out. Requests naming a Host other than localhost, 127.0.0.1,
+// [::1] or the bound address (any address literal when bound to a wildcard)
+// are refused: DNS rebinding. Not for the daemon: allocation is fine here.
+// docs/operations.md.
 #include <poll.h>
 
 #include <cstddef>
@@ -23,13 +29,18 @@ namespace exodaq::tools::view {
 struct HttpOptions {
   std::string bind = "127.0.0.1";  // numeric IPv4 or IPv6 address
   int port = 8077;                 // 0: any free port (see port())
+  // Connections open at once, all clients together and from one client
+  // address: a new one beyond either closes an older one (the busiest
+  // client's oldest idle, else its oldest), so new visitors always get in.
   std::size_t max_connections = 64;
+  std::size_t max_per_client = 16;
   std::size_t max_request_bytes = 8192;
   // Bytes queued for one stream client beyond which skippable events are not
   // queued for it.
   std::size_t stream_backlog_bytes = 256 * 1024;
   std::int64_t stall_timeout_ns = 10'000'000'000;    // output pending, none accepted: close
   std::int64_t request_timeout_ns = 10'000'000'000;  // request not complete: close
+  std::int64_t idle_timeout_ns = 5'000'000'000;      // nothing received at all: close
 };
 
 struct HttpResponse {
@@ -42,7 +53,8 @@ struct HttpStats {
   std::int64_t accepted = 0;
   std::int64_t requests = 0;
   std::int64_t bad_requests = 0;          // malformed, too large, wrong method, timed out
-  std::int64_t refused = 0;               // over max_connections
+  std::int64_t evicted = 0;               // closed to make room (max_connections, max_per_client)
+  std::int64_t idle_closed = 0;           // closed for sending nothing within idle_timeout
   std::int64_t stream_clients = 0;        // open now
   std::int64_t skipped_events = 0;        // not queued for a client whose backlog was full
   std::int64_t stalled_closed = 0;        // closed for accepting nothing within stall_timeout
@@ -85,6 +97,8 @@ class HttpServer {
  private:
   struct Conn;
   void accept_all(std::int64_t now_ns);
+  void make_room(const std::string& client);
+  bool host_allowed(std::string_view host_value) const;
   void read_from(Conn& c, std::int64_t now_ns);
   void answer(Conn& c, std::int64_t now_ns);
   void respond(Conn& c, int status, std::string_view content_type, std::string_view body, bool head,

@@ -274,15 +274,18 @@ std::string ViewScene::status_json(const status_t& s) const {
       .field("seq", s.seq)
       .field("utime", s.utime)
       .field("run_id", msg::run_id_text(s.run_id));
-  j.field("rig", s.rig).field("state", msg::state_name(s.state)).field("state_code", int{s.state});
+  j.field("rig", s.rig).field("state", msg::state_name(s.state));
   j.field("message", s.message).field("source", s.source);
   j.field("bus", msg::bus_state_name(s.bus_state)).field("board_errors", s.board_errors);
   j.key("clock").begin_object();
   j.field("synchronised", s.clock_synchronised != 0).field("required", options_.sync_required);
   // The kernel's 16 s bound means "no estimate" (clock_text.hpp): null.
-  j.key("est_error_us");
-  s.clock_est_error_us < kKernelUnknownErrorUs ? j.value(s.clock_est_error_us) : j.null();
-  j.field("max_error_us", s.clock_max_error_us).field("offset_us", s.clock_offset_us);
+  for (const auto& [key, us] : {std::pair{"est_error_us", s.clock_est_error_us},
+                                std::pair{"max_error_us", s.clock_max_error_us}}) {
+    j.key(key);
+    clock_error_known(us) ? j.value(us) : j.null();
+  }
+  j.field("offset_us", s.clock_offset_us);
   j.field("utime_correction_us", s.utime_correction_us).field("steps", s.clock_steps);
   j.end_object();
   j.key("loop").begin_object();

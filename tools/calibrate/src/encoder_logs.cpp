@@ -20,10 +20,12 @@
 #include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/message.hpp"
+#include "sample_stores.hpp"
 
 namespace exodaq::calibration {
 
 using config::ConfigError;
+using detail::EncoderStore;
 
 namespace {
 
@@ -80,11 +82,11 @@ std::int64_t to_int(const std::string& v, const std::string& name, int line,
   return i;
 }
 
-// "" when `s` may follow the series, else why not.
-std::string order_problem(const EncoderSeries& out, const EncoderSample& s) {
-  if (out.samples.empty() || s.utime_us > out.samples.back().utime_us) return "";
+// "" when `s` may follow the last sample (utime `last`), else why not.
+std::string order_problem(const EncoderStore& store, const EncoderSample& s) {
+  if (store.empty() || s.utime_us > store.last_utime()) return "";
   return "utime_us " + std::to_string(s.utime_us) + " does not increase (previous " +
-         std::to_string(out.samples.back().utime_us) + ")";
+         std::to_string(store.last_utime()) + ")";
 }
 
 // A LogError's text without its leading "<file>: ".
@@ -99,12 +101,13 @@ struct ExportColumns {
   std::size_t sample_flags = SIZE_MAX;
 };
 
-ExportColumns export_columns(const detail::CsvRow& h, const std::string& name) {
+ExportColumns export_columns(const std::vector<std::string>& fields, int line,
+                             const std::string& name) {
   std::map<std::string, std::size_t> col;
-  for (std::size_t i = 0; i < h.fields.size(); ++i) col[h.fields[i]] = i;
+  for (std::size_t i = 0; i < fields.size(); ++i) col[fields[i]] = i;
   const auto need = [&](const std::string& c) {
     const auto it = col.find(c);
-    if (it == col.end()) throw ConfigError(name, h.number, "missing column '" + c + "'");
+    if (it == col.end()) throw ConfigError(name, line, "missing column '" + c + "'");
     return it->second;
   };
   ExportColumns c;
@@ -112,7 +115,7 @@ ExportColumns export_columns(const detail::CsvRow& h, const std::string& name) {
   std::vector<std::string> joints;
   const std::string pos(msg::csv::kPositionSuffix);
   const std::string vel(msg::csv::kVelocitySuffix);
-  for (const auto& f : h.fields) {
+  for (const auto& f : fields) {
     const bool is_pos =
         f.size() > pos.size() && f.compare(f.size() - pos.size(), pos.size(), pos) == 0;
     const bool is_vel =
@@ -120,7 +123,7 @@ ExportColumns export_columns(const detail::CsvRow& h, const std::string& name) {
     if (is_pos && !is_vel) joints.push_back(f.substr(0, f.size() - pos.size()));
   }
   if (joints.size() != kJoints) {
-    throw ConfigError(name, h.number,
+    throw ConfigError(name, line,
                       "expected six '<joint>_rad' columns, found " + std::to_string(joints.size()));
   }
   for (int j = 0; j < kJoints; ++j) {
@@ -134,40 +137,42 @@ ExportColumns export_columns(const detail::CsvRow& h, const std::string& name) {
 
 }  // namespace
 
-EncoderSeries detail::parse_export_csv(const std::vector<CsvRow>& rows, const std::string& name,
-                                       const EncoderReadOptions& o) {
-  const ExportColumns c = export_columns(rows[0], name);
-  const auto& offsets = offsets_or_fail(o, name, rows[0].number);
+EncoderSeries detail::parse_export_csv(LineReader& in, const std::vector<std::string>& head,
+                                       int head_line, const EncoderReadOptions& o) {
+  const std::string& name = in.name();
+  const ExportColumns c = export_columns(head, head_line, name);
+  const auto& offsets = offsets_or_fail(o, name, head_line);
   EncoderSeries out;
   out.source = name;
-  out.samples.reserve(rows.size());
-  for (std::size_t k = 1; k < rows.size(); ++k) {
-    const CsvRow& r = rows[k];
-    if (r.fields.size() != rows[0].fields.size()) {
-      throw ConfigError(name, r.number,
-                        "expected " + std::to_string(rows[0].fields.size()) + " fields, found " +
-                            std::to_string(r.fields.size()));
-    }
+  EncoderStore store(kMaxEncoderSamples, static_cast<std::size_t>(in.size() / 200));
+  std::string line;
+  std::vector<std::string> f;
+  while (next_row(in, line, f)) {
+    const int n = in.line();
+    if (f.size() != head.size()) wrong_field_count(name, n, head.size(), f.size());
     double position[kJoints];
     bool homed[kJoints];
     std::int32_t flags[kJoints];
     for (int j = 0; j < kJoints; ++j) {
-      position[j] =
-          to_double(r.fields[c.position[j]], name, r.number, rows[0].fields[c.position[j]]);
-      homed[j] = to_int(r.fields[c.homed[j]], name, r.number, rows[0].fields[c.homed[j]]) != 0;
-      flags[j] = static_cast<std::int32_t>(
-          to_int(r.fields[c.flags[j]], name, r.number, rows[0].fields[c.flags[j]]));
+      position[j] = to_double(f[c.position[j]], name, n, head[c.position[j]]);
+      homed[j] = to_int(f[c.homed[j]], name, n, head[c.homed[j]]) != 0;
+      flags[j] = static_cast<std::int32_t>(to_int(f[c.flags[j]], name, n, head[c.flags[j]]));
     }
     const std::int32_t sample_flags =
-        c.sample_flags == SIZE_MAX ? 0
-                                   : static_cast<std::int32_t>(to_int(
-                                         r.fields[c.sample_flags], name, r.number, "sample_flags"));
-    const std::int64_t utime = to_int(r.fields[c.utime], name, r.number, "utime_us");
+        c.sample_flags == SIZE_MAX
+            ? 0
+            : static_cast<std::int32_t>(to_int(f[c.sample_flags], name, n, "sample_flags"));
+    const std::int64_t utime = to_int(f[c.utime], name, n, "utime_us");
     const EncoderSample s = to_sample(utime, position, homed, flags, sample_flags, offsets);
-    if (const std::string p = order_problem(out, s); !p.empty())
-      throw ConfigError(name, r.number, p);
-    out.samples.push_back(s);
+    if (!store.empty() && s.utime_us <= store.last_utime()) {
+      throw ConfigError(name, n,
+                        "utime_us " + std::to_string(s.utime_us) + " does not increase (previous " +
+                            std::to_string(store.last_utime()) + ")");
+    }
+    store.push(s);
   }
+  out.thinned = store.thinned();
+  out.samples = store.take();
   if (out.samples.size() < 2) throw ConfigError(name, 0, "fewer than two encoder samples");
   out.notes.push_back(name + ": calibrated angles less the offsets of " + o.recorded_calibration);
   return out;
@@ -213,6 +218,7 @@ EncoderSeries read_joint_state_log(const std::string& path, const EncoderReadOpt
   msg::LogEvent ev;
   joint_state_t js;
   std::int64_t undecodable = 0;
+  EncoderStore store;
   while (log.next(ev)) {
     if (ev.channel != channel) continue;
     if (!msg::decode_into(js, ev.data, ev.size)) {
@@ -224,11 +230,13 @@ EncoderSeries read_joint_state_log(const std::string& path, const EncoderReadOpt
     for (int j = 0; j < kJoints; ++j) homed[j] = js.homed[j] != 0;
     const EncoderSample s =
         to_sample(js.utime, js.position, homed, js.flags, js.sample_flags, offsets);
-    if (const std::string p = order_problem(out, s); !p.empty()) {
+    if (const std::string p = order_problem(store, s); !p.empty()) {
       throw ConfigError(path, 0, "event " + std::to_string(ev.number) + ": " + p);
     }
-    out.samples.push_back(s);
+    store.push(s);
   }
+  out.thinned = store.thinned();
+  out.samples = store.take();
   if (out.samples.size() < 2) {
     throw ConfigError(path, 0, "fewer than two joint_state_t messages on " + channel);
   }

@@ -5,21 +5,13 @@
 #include <string>
 #include <vector>
 
+#include "csv_text.hpp"
 #include "exodaq/calibration/inputs.hpp"
 
 namespace exodaq::calibration::detail {
 
-// One CSV line: its 1-based number and its fields.
-struct CsvRow {
-  int number = 0;
-  std::vector<std::string> fields;
-};
-
-// A whole input CSV (files::read_input within kMaxCsvBytes; ConfigError).
-std::string read_csv_text(const std::string& path);
-
-// `exodaq export`'s dialect: rows[0] is the header.
-EncoderSeries parse_export_csv(const std::vector<CsvRow>& rows, const std::string& name,
+// `exodaq export`'s dialect: the rows after the header `head` (line head_line).
+EncoderSeries parse_export_csv(LineReader& in, const std::vector<std::string>& head, int head_line,
                                const EncoderReadOptions& o);
 
 }  // namespace exodaq::calibration::detail

@@ -77,6 +77,14 @@ void print_errors(std::ostream& o, const Report& r) {
     << " mm; RMS per axis " << f("%.3f", r.after.rms_xyz_m.x() * 1e3) << ", "
     << f("%.3f", r.after.rms_xyz_m.y() * 1e3) << ", " << f("%.3f", r.after.rms_xyz_m.z() * 1e3)
     << " mm\n\n";
+  if (r.time_offset_hint && r.time_offset_hint->significant()) {
+    const TimeOffsetHint& h = *r.time_offset_hint;
+    o << "WARNING: the residuals follow the markers' motion: a clock offset of "
+      << f("%+.2f", h.offset_s * 1e3) << " ± " << f("%.2f", h.std_s * 1e3)
+      << " ms (encoder time = marker time + offset) explains " << f("%.0f", h.explained * 100)
+      << " % of them. The two clocks are not aligned: estimate the offset (--estimate-time-offset"
+         " or --align-time on) or check the clocks.\n\n";
+  }
 }
 
 void print_parameters(std::ostream& o, const Report& r) {

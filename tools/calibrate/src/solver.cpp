@@ -88,25 +88,43 @@ struct MarkerCost {
 };
 using MarkerCostFunction = ceres::AutoDiffCostFunction<MarkerCost, 3, kParams, 1>;
 
+// One progress line per iteration that moved the RMS by 0.1 % or more (an
+// iteration that changes nothing visible is not news), and the stage's end.
 class Progress : public ceres::IterationCallback {
  public:
   Progress(const SolveOptions& o, std::size_t residuals, std::string stage)
       : o_(o), m_(residuals), stage_(std::move(stage)) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
-    if (o_.progress) {
+    if (!o_.progress) return ceres::SOLVER_CONTINUE;
+    const double rms = std::sqrt(2.0 * s.cost / static_cast<double>(m_));
+    if (s.iteration == 0 || std::abs(rms - shown_) > 1e-3 * shown_) {
       char buf[200];
-      std::snprintf(buf, sizeof buf, "  [%s] iter %3d  rms %.4f mm  |step| %.2e  %s",
-                    stage_.c_str(), s.iteration, std::sqrt(2.0 * s.cost / static_cast<double>(m_)),
-                    s.step_norm, s.step_is_successful ? "" : "(rejected)");
+      std::snprintf(buf, sizeof buf, "  [%s] iter %3d  rms %.4f mm  |step| %.2e", stage_.c_str(),
+                    s.iteration, rms, s.step_norm);
       o_.progress(buf);
+      shown_ = rms;
+    } else {
+      ++quiet_;
     }
+    last_ = rms;
+    iterations_ = s.iteration;
     return ceres::SOLVER_CONTINUE;
+  }
+  void finish() const {
+    if (!o_.progress) return;
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "  [%s] done after %d iterations (%d without a visible change), rms %.4f mm",
+                  stage_.c_str(), iterations_, quiet_, last_);
+    o_.progress(buf);
   }
 
  private:
   const SolveOptions& o_;
   std::size_t m_;
   std::string stage_;
+  double shown_ = 0, last_ = 0;
+  int quiet_ = 0, iterations_ = 0;
 };
 
 struct Problem {
@@ -215,6 +233,7 @@ ceres::Solver::Summary run(ceres::Problem& problem, const SolveOptions& o, std::
   so.update_state_every_iteration = false;
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
+  cb.finish();
   if (!summary.IsSolutionUsable()) {
     throw std::runtime_error("calibration solve failed (" + stage + "): " + summary.message);
   }
@@ -414,10 +433,68 @@ void parameter_results(const SolveState& s, const Bounds& bounds, const Eigen::M
   }
 }
 
+// The offset the residuals point to when τ is not estimated (TimeOffsetHint):
+// the τ column (the predicted marker's motion) projected off the estimated
+// columns, against the residuals.
+std::optional<TimeOffsetHint> time_offset_hint(const NominalModel& model,
+                                               const std::vector<AlignedSample>& points,
+                                               const EncoderSeries& enc, const SolveState& s,
+                                               const Eigen::MatrixXd& J,
+                                               const std::vector<int>& est,
+                                               const Eigen::VectorXd& r, double sigma_mm) {
+  const auto n = static_cast<Eigen::Index>(points.size());
+  Eigen::VectorXd g(3 * n);
+  const double tau = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const AlignedSample& p = points[static_cast<std::size_t>(i)];
+    MarkerCost c{
+        &model,         p.theta_r,    Eigen::Vector3d(p.marker[0], p.marker[1], p.marker[2]),
+        p.site,         &enc.samples, p.utime_us,
+        p.encoder_index};
+    MarkerCostFunction f(new MarkerCost(c));
+    const double* params[2] = {s.x.data(), &tau};
+    double res[3];
+    double jt[3];
+    double* jac[2] = {nullptr, jt};
+    if (!f.Evaluate(params, res, jac)) return std::nullopt;
+    g.segment<3>(3 * i) = Eigen::Vector3d(jt[0], jt[1], jt[2]);
+  }
+  std::vector<int> cols;
+  for (int c : est) {
+    if (c != detail::kTau) cols.push_back(c);
+  }
+  const Eigen::MatrixXd K = detail::columns(J, cols);
+  const Eigen::VectorXd g_perp =
+      cols.empty() ? g : Eigen::VectorXd(g - K * K.colPivHouseholderQr().solve(g));
+  const double gg = g_perp.squaredNorm(), rr = r.squaredNorm();
+  if (!(gg > 0) || !(rr > 0)) return std::nullopt;
+  TimeOffsetHint h;
+  h.offset_s = -g_perp.dot(r) / gg;
+  h.std_s = sigma_mm / std::sqrt(gg);
+  h.explained = g_perp.dot(r) * g_perp.dot(r) / (gg * rr);
+  return h;
+}
+
+// Every free parameter on one of its bounds, "dtheta1_deg 40.700 (bounds 20.700..40.700)".
+std::string on_bounds(const SolveState& s, const Bounds& b) {
+  std::string out;
+  for (int p = 0; p < kParams; ++p) {
+    if (b.params[p].fixed) continue;
+    const auto& pr = b.params[p];
+    const double eps = 1e-6 * (pr.upper - pr.lower);
+    if (s.x[p] > pr.lower + eps && s.x[p] < pr.upper - eps) continue;
+    out += (out.empty() ? "" : ", ") + std::string(param_key(p)) + " " +
+           fmt("%.3f", to_display(p, s.x[p])) + " (bounds " + fmt("%.3f", to_display(p, pr.lower)) +
+           ".." + fmt("%.3f", to_display(p, pr.upper)) + ")";
+  }
+  return out;
+}
+
 // Everything the report says about the final solution: noise, covariance,
 // parameter statuses, singular values, degeneracies and correlations.
-void describe_solution(Problem& P, SolveState& s, const Bounds& bounds, const SolveOptions& options,
-                       const std::vector<AlignedSample>& points, Report& rep) {
+void describe_solution(const NominalModel& model, Problem& P, SolveState& s, const Bounds& bounds,
+                       const SolveOptions& options, const std::vector<AlignedSample>& points,
+                       const EncoderSeries* encoders, Report& rep) {
   const std::vector<int> est = s.estimated();
   rep.free_params = est.size();
   Eigen::VectorXd r;
@@ -434,12 +511,18 @@ void describe_solution(Problem& P, SolveState& s, const Bounds& bounds, const So
   rep.observation_sets = detail::observation_sets(
       J, points, estimable, s.tau_free,
       std::max(sigma_mm, bounds.identifiability.noise_floor_m * kMToMm), bounds);
+  if (!s.tau_free && encoders != nullptr && encoders->samples.size() >= 2) {
+    rep.time_offset_hint = time_offset_hint(model, points, *encoders, s, J, est, r, sigma_mm);
+  }
 }
 
 }  // namespace
 
 Report calibrate(const NominalModel& model, const std::vector<AlignedSample>& points,
-                 const Bounds& bounds, const SolveOptions& options, const EncoderSeries* encoders) {
+                 const Bounds& bounds_file, const SolveOptions& options,
+                 const EncoderSeries* encoders) {
+  Bounds bounds = bounds_file;
+  if (options.time_offset) bounds.time_offset = *options.time_offset;
   auto say = [&](const std::string& s) {
     if (options.progress) options.progress(s);
   };
@@ -455,22 +538,34 @@ Report calibrate(const NominalModel& model, const std::vector<AlignedSample>& po
       std::to_string(points.size()) + " points");
 
   solve_stage(P, s, bounds, options, "all free", rep);  // stage 1: what the bounds leave free
+  const ErrorStats first_fit = evaluate(model, s.x, points, nullptr);
+  const std::string first_on_bounds = on_bounds(s, bounds);
   hold_unobservable(P, s, bounds, options, rep);
-  if (s.free_count() == 0) {
-    // Every free parameter judged unidentifiable: the residual is far above
-    // any noise, so the data do not fit the model at all.
-    const ErrorStats fit = evaluate(model, s.x, points, nullptr);
-    throw std::runtime_error(
+  // Every free parameter judged unidentifiable, or the rest ended on a
+  // bound: the data do not fit the model within the bounds at all.
+  const auto nothing_identified = [&] {
+    const std::string bounds_note =
+        first_on_bounds.empty()
+            ? std::string("; ")
+            : "; the fit ended on " +
+                  (bounds.source.empty() ? std::string("the bounds")
+                                         : "the bounds of " + bounds.source) +
+                  " for " + first_on_bounds +
+                  ": this rig's values may lie outside them (widen those bounds or start from "
+                  "values measured on this rig); otherwise, ";
+    return std::runtime_error(
         "no parameter is identifiable from these data: the best fit leaves " +
-        fmt("%.1f", fit.rms_m * kMToMm) +
-        " mm RMS; do the encoder angles and the markers belong together (the clocks, the "
-        "recorded calibration, the marker ids)?");
-  }
+        fmt("%.1f", first_fit.rms_m * kMToMm) + " mm RMS" + bounds_note +
+        "do the encoder angles and the markers belong together (the clocks, the recorded "
+        "calibration, the marker ids)?");
+  };
+  if (s.free_count() == 0) throw nothing_identified();
   mark_active_bounds(s, bounds);
+  if (s.estimated().empty()) throw nothing_identified();
   final_residuals(P, s, rep);
   const auto per_marker = residuals_per_marker(points, rep.residual_after);
   if (per_marker.size() > 1) rep.per_marker = per_marker;
-  describe_solution(P, s, bounds, options, points, rep);
+  describe_solution(model, P, s, bounds, options, points, encoders, rep);
   say("after calibration: RMS " + fmt("%.3f", rep.after.rms_m * kMToMm) + " mm");
   return rep;
 }

@@ -231,7 +231,7 @@
       $('source').textContent = `${s.source}, bus ${s.bus}, frames ${s.source_stats.frames}, ` +
         `missing ${s.source_stats.missing_samples}, seq gaps ${s.source_stats.seq_gaps}`;
       $('clock-detail').textContent = `${c.synchronised ? 'synchronised' : 'not synchronised'}, est error ${c.est_error_us === null ? 'unknown' : fmt(c.est_error_us, 1) + ' µs'}, ` +
-        `max error ${fmt(c.max_error_us, 1)} µs, offset ${fmt(c.offset_us, 1)} µs, steps ${c.steps}`;
+        `max error ${c.max_error_us === null ? 'unknown' : fmt(c.max_error_us, 1) + ' µs'}, offset ${fmt(c.offset_us, 1)} µs, steps ${c.steps}`;
     }
     if (d === 'stopped') badge($('service'), 'STOPPED', 'bad');
     // A status that stopped coming is the last word of a service that may be gone.

@@ -1,7 +1,7 @@
 """exodaq: the exodaqd messages for decoders, in pure Python.
 
 The message types generated from lcmtypes/exodaq/*.lcm by lcm-gen
-(joint_state_t, palm_pose_t, encoder_raw_t, status_t, homing_t, with their constants),
+(joint_state_t, palm_pose_t, ... as listed in exodaq.KINDS, with their constants),
 a receiver for LCM's udpm:// transport (Debian 12 has no LCM Python module),
 decoding by fingerprint, the channel names and names for the flag bits.
 docs/messages.md (installed as /usr/share/doc/exodaq/messages.md) has a
@@ -15,13 +15,9 @@ complete subscriber.
 """
 
 from ._version import __version__
+from ._message_list import *  # noqa: F401,F403  every message class: joint_state_t, ...
 from .client import DEFAULT_KINDS, Message, Subscriber, decode, fields, main
-from .encoder_raw_t import encoder_raw_t
-from .homing_t import homing_t
-from .joint_state_t import joint_state_t
 from .names import (BASE_CHANNELS, KINDS, Kind, bus_state_name, channel_name, homing_name,
                     invalid_reason_names, joint_flag_names, kind, kind_of_payload, parse_kind,
                     run_id_text, sample_flag_names, split_channel, state_name)
-from .palm_pose_t import palm_pose_t
-from .status_t import status_t
 from .udpm import DEFAULT_URL, Receiver, parse_url

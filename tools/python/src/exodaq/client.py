@@ -68,12 +68,23 @@ class Subscriber:
     url: the daemon's lcm.url (udpm:// only; the receiver's ttl does not matter).
     prefix: the daemon's lcm.prefix, used literally.
     kinds: which messages, by short name (default joint_state, palm_pose, status).
-    Counters, for checking nothing was lost:
-      lost[kind]   cycles missing from seq of the per-cycle kinds: lost on the
-                   way to this process (socket buffer full, network); reset
-                   when run_id changes (the daemon restarted)
-      undecodable  messages on these channels that did not decode (last_error says why)
+    Counters, for checking nothing was lost (per-cycle kinds, counted per run;
+    the rule of the C++ msg::RunAccount, docs/messages.md "Counting what was
+    lost"):
+      lost[kind]     cycles the daemon published that did not arrive: lost on
+                     the way to this process (socket buffer full, network)
+      skipped[kind]  seq numbers the daemon itself never published (deadlines
+                     it skipped, publishes it counted as failed), from its
+                     status counters: not a loss
+      pending[kind]  holes not yet covered by a status (at most ~100 ms old):
+                     they move to lost or skipped when the next status arrives
+      repeated[kind] messages whose seq was not new within their run: two
+                     streams with one run id (replay --live of a live run, a
+                     forged message), said once per run on stderr; still returned
+      undecodable    messages on these channels that did not decode (last_error says why)
       and the transport's: receiver.bad_packets, receiver.dropped_fragmented
+    The status channel is always received for this accounting; status messages
+    are returned only when "status" is among `kinds`.
     mixed_runs: None, or (run_id, other_run_id) once two runs interleave on these
       channels (two daemons publish on one channel set: a run id comes back after
       another one; a restart, one run after the other, is not a mix). Said once
@@ -84,12 +95,22 @@ class Subscriber:
         self.prefix = prefix
         self.kinds = [names.kind(k) for k in kinds]
         self._by_channel = {prefix + k.base_channel: k for k in self.kinds}
-        self.receiver = Receiver(url, channels=list(self._by_channel), recv_buf_size=recv_buf_size)
+        self._status_channel = prefix + names.kind("status").base_channel
+        self._return_status = self._status_channel in self._by_channel
+        channels = list(self._by_channel)
+        if not self._return_status:
+            channels.append(self._status_channel)
+        self.receiver = Receiver(url, channels=channels, recv_buf_size=recv_buf_size)
         self.received = collections.Counter()
         self.lost = collections.Counter()
+        self.skipped = collections.Counter()
+        self.repeated = collections.Counter()
         self.undecodable = 0
         self.last_error = None
         self._last = {}  # kind name -> (run_id, seq)
+        self._holes = collections.defaultdict(list)  # kind name -> [[first seq, count]] not yet judged
+        self._daemon = {}  # run_id -> (unpublished, failures) of its last status
+        self._repeat_said = set()
         self.mixed_runs = None
         self._run = 0
         self._runs_seen = set()
@@ -110,15 +131,63 @@ class Subscriber:
     def channels(self):
         return list(self._by_channel)
 
+    @property
+    def pending(self):
+        return collections.Counter({k: sum(n for _, n in h) for k, h in self._holes.items() if h})
+
     def _count(self, k, msg):
-        self.received[k.name] += 1
-        if not k.per_cycle:
+        if k.name != "status" or self._return_status:
+            self.received[k.name] += 1
+        if k.name == "status":
+            self._judge(msg)
+            return
+        if not k.per_cycle or (msg.utime == 0 and msg.seq == 0):
             return
         last = self._last.get(k.name)
-        if last is not None and last[0] == msg.run_id and msg.seq > last[1] + 1:
-            self.lost[k.name] += msg.seq - last[1] - 1
-        if last is None or last[0] != msg.run_id or msg.seq > last[1]:
-            self._last[k.name] = (msg.run_id, msg.seq)
+        if last is not None and last[0] != msg.run_id:
+            # A new run: the old one's holes no status will cover are lost.
+            self.lost[k.name] += sum(n for _, n in self._holes[k.name])
+            self._holes[k.name] = []
+            last = None
+        if last is not None and msg.seq > last[1] + 1:
+            self._holes[k.name].append([last[1] + 1, msg.seq - last[1] - 1])
+        elif last is not None and msg.seq <= last[1]:
+            self.repeated[k.name] += 1
+            if msg.run_id not in self._repeat_said:
+                self._repeat_said.add(msg.run_id)
+                print("exodaq: WARNING: seq %d of run %s on %s after seq %d: interleaved or "
+                      "repeated seq of one run id (a second stream with this run id: replay "
+                      "--live of a live run?)" % (msg.seq, names.run_id_text(msg.run_id),
+                                                  self.prefix + k.base_channel, last[1]),
+                      file=sys.stderr)
+            return
+        self._last[k.name] = (msg.run_id, msg.seq)
+
+    def _judge(self, st):
+        """The holes up to a status's seq: the daemon's up to what its counters
+        grew by since its previous status, the rest lost."""
+        if st.utime == 0:
+            return
+        unpublished = max(0, st.seq + 1 - st.cycles)
+        failures = max(0, st.publish_failures)
+        before = self._daemon.get(st.run_id, (0, 0))
+        self._daemon[st.run_id] = (max(before[0], unpublished), max(before[1], failures))
+        budget = max(0, unpublished - before[0]) + max(0, failures - before[1])
+        for name, holes in self._holes.items():
+            last = self._last.get(name)
+            if not holes or last is None or last[0] != st.run_id:
+                continue
+            n = 0
+            while holes and holes[0][0] <= st.seq:
+                take = min(holes[0][1], st.seq - holes[0][0] + 1)
+                n += take
+                holes[0][0] += take
+                holes[0][1] -= take
+                if holes[0][1] == 0:
+                    holes.pop(0)
+            mine = min(n, budget)
+            self.skipped[name] += mine
+            self.lost[name] += n - mine
 
     def _watch_runs(self, msg):
         rid = msg.run_id
@@ -142,7 +211,7 @@ class Subscriber:
             if got is None:
                 return None
             channel, data = got
-            k = self._by_channel[channel]
+            k = self._by_channel.get(channel) or names.kind("status")
             try:
                 msg = decode(data)
                 if msg is None or type(msg) is not k.type:
@@ -153,6 +222,8 @@ class Subscriber:
                 continue  # counted; the caller sees it in undecodable
             self._count(k, msg)
             self._watch_runs(msg)
+            if k.name == "status" and not self._return_status:
+                continue  # received for the accounting only
             return Message(channel, k.name, msg)
 
     def messages(self, count=None, timeout=None):

@@ -1,9 +1,11 @@
-"""The five exodaq messages, their channels, and names for their flag bits and codes.
+"""The exodaq messages, their channels, and names for their flag bits and codes.
 
-The same table and the same names as the C++ messages library
-(messages/src/channels.cpp, flag_names.cpp); tests/python checks both agree
-bit for bit. A channel is ``<prefix><base>``, e.g. "RIG2_" + "EXO_JOINT_STATE",
-where the prefix is the daemon's lcm.prefix (docs/messages.md).
+The same table and the same names as the C++ messages library; both come from
+the one message list (messages/include/exodaq/messages/message_list.def),
+which the build writes into _message_list.py, and tests/python checks both
+agree bit for bit. A channel is ``<prefix><base>``, e.g. "RIG2_" +
+"EXO_JOINT_STATE", where the prefix is the daemon's lcm.prefix
+(docs/messages.md).
 
 The flag names come from the constants of the .lcm files, which lcm-gen puts
 into the generated classes: joint_state_t.JOINT_STALE is named "STALE".
@@ -11,8 +13,7 @@ into the generated classes: joint_state_t.JOINT_STALE is named "STALE".
 
 import collections
 
-from .encoder_raw_t import encoder_raw_t
-from .homing_t import homing_t
+from ._message_list import MESSAGES
 from .joint_state_t import joint_state_t
 from .palm_pose_t import palm_pose_t
 from .status_t import status_t
@@ -22,18 +23,11 @@ Kind.__doc__ = """One message type: short name ("joint_state"), channel without
 prefix ("EXO_JOINT_STATE"), generated class, and whether it is sent every
 cycle (then its seq counts cycles)."""
 
-KINDS = (
-    Kind("joint_state", "EXO_JOINT_STATE", joint_state_t, True),
-    Kind("palm_pose", "EXO_PALM_POSE", palm_pose_t, True),
-    Kind("encoder_raw", "EXO_ENCODER_RAW", encoder_raw_t, True),
-    Kind("status", "EXO_STATUS", status_t, False),
-    Kind("homing", "EXO_HOMING", homing_t, False),
-)
+KINDS = tuple(Kind(name, base, cls, per_cycle) for name, base, cls, per_cycle, _ in MESSAGES)
 BASE_CHANNELS = tuple(k.base_channel for k in KINDS)
 
 _by_fingerprint = {k.type._get_packed_fingerprint(): k for k in KINDS}
-_aliases = {"JOINT": "JOINT_STATE", "JOINTS": "JOINT_STATE", "PALM": "PALM_POSE",
-            "POSE": "PALM_POSE", "RAW": "ENCODER_RAW", "ENCODER": "ENCODER_RAW"}
+_aliases = {alias: k for k, (*_, aliases) in zip(KINDS, MESSAGES) for alias in aliases}
 
 
 def kind(name):
@@ -51,11 +45,10 @@ def parse_kind(text):
     if isinstance(text, Kind):
         return text
     u = str(text).upper()
-    u = _aliases.get(u, u)
     for k in KINDS:
         if u in (k.name.upper(), k.base_channel, k.type.__name__.upper()):
             return k
-    return None
+    return _aliases.get(u)
 
 
 def channel_name(prefix, kind_name):

@@ -2,9 +2,11 @@
 // Inputs of `exodaq calibrate` (docs/calibration.md): the encoder stream (joint
 // angles relative to the index, θᴿ of seed 000 eq. 4, with homed and fault
 // masks; from calibrate's CSV, `exodaq export`'s CSV or an LCM log) and the
-// motion-capture marker stream, and their alignment by the NTP-aligned
-// timestamps. Errors are config::ConfigError "file:line: what". Files are
-// read as files::read_input (regular files within kMaxCsvBytes).
+// motion-capture marker stream (the long CSV, C3D, Vicon Nexus and OptiTrack
+// Motive CSV exports, told apart by content), and their alignment in time.
+// Errors are config::ConfigError "file:line: what". Inputs are regular files
+// within files::kMaxCsvBytes, read as streams: memory stays bounded whatever
+// their size (kMaxEncoderSamples, kMaxMarkerSamples; docs/robustness.md).
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -19,6 +21,13 @@ namespace exodaq::calibration {
 inline constexpr int kJoints = 6;
 inline constexpr std::uint8_t kAllJoints = 0x3F;
 
+// Most samples a reader keeps. A longer stream is thinned while it is read:
+// every other kept sample is dropped and the spacing doubles (a dropped
+// encoder sample's homed/fault masks and gap go into the kept one before it,
+// so nothing unhomed, faulted or missing is interpolated across).
+inline constexpr std::size_t kMaxEncoderSamples = std::size_t{1} << 20;  // 64 MiB
+inline constexpr std::size_t kMaxMarkerSamples = std::size_t{1} << 20;   // 48 MiB
+
 // One encoder sample. theta_r: θᴿ in rad (the angle measured from each
 // joint's index, direction and gear ratio already applied).
 struct EncoderSample {
@@ -26,6 +35,9 @@ struct EncoderSample {
   std::array<double, kJoints> theta_r{};
   std::uint8_t homed_mask = kAllJoints;  // bit i: joint i+1 homed
   std::uint8_t fault_mask = 0;           // bit i: joint i+1 flagged (stale, glitch, ...)
+  // The widest gap between the recorded samples from this one to the next
+  // (set by the readers; 0: the difference of the two utimes).
+  std::int32_t widest_gap_us = 0;
   bool valid() const noexcept { return homed_mask == kAllJoints && fault_mask == 0; }
 };
 
@@ -33,6 +45,7 @@ struct EncoderSeries {
   std::string source;                  // file name, for messages and provenance
   std::vector<EncoderSample> samples;  // strictly increasing utime
   std::vector<std::string> notes;      // what the reader skipped or assumed, for people
+  std::size_t thinned = 0;             // samples dropped to stay within kMaxEncoderSamples
 };
 
 // How to read encoder angles from the project's own recordings, which hold
@@ -70,21 +83,67 @@ EncoderSeries read_joint_state_log(const std::string& path, const EncoderReadOpt
 EncoderSeries read_encoder_log(const std::string& path, const EncoderReadOptions& o = {});
 
 struct MarkerSample {
-  std::int64_t utime_us = 0;
-  bool present = false;        // false: marker occluded (empty/NaN coordinates)
+  std::int64_t utime_us = 0;   // epoch µs (long CSV), else µs since the capture's first frame
+  bool present = false;        // false: marker occluded (empty/NaN coordinates, invalid point)
   double x = 0, y = 0, z = 0;  // m, camera frame
   int marker_id = -1;          // -1 when the file has no marker_id column
 };
 
-struct MarkerSeries {
-  std::string source;
-  std::vector<MarkerSample> samples;
-  std::size_t other_ids = 0;  // rows of markers that were not selected (counted, not used)
+// The motion-capture files the readers know, told apart by content
+// (docs/calibration.md §3.4).
+enum class MarkerFormat {
+  kLongCsv,    // the project's CSV: utime_us,x_mm,y_mm,z_mm[,marker_id]
+  kC3d,        // C3D (points; Intel, DEC and SGI/MIPS; integer and float storage)
+  kViconCsv,   // Vicon Nexus CSV export, its Trajectories section
+  kMotiveCsv,  // OptiTrack Motive CSV export (marker and rigid-body-marker columns)
+};
+const char* format_name(MarkerFormat f) noexcept;
+
+// What a marker file says about itself.
+struct MarkerFileInfo {
+  MarkerFormat format = MarkerFormat::kLongCsv;
+  // Labelled formats: the markers' labels; a marker's id is its 1-based
+  // position in this list. Empty for the long CSV (ids from marker_id).
+  std::vector<std::string> labels;
+  double rate_hz = 0;       // frame rate (0: not stated)
+  bool epoch_times = true;  // utime_us since the Unix epoch; false: from the first frame
+  std::string start_time;   // the export's own capture start time, as written (Motive)
+  std::vector<std::string> notes;
 };
 
-// CSV: header `utime_us,x_mm,y_mm,z_mm[,marker_id]`. Empty fields or `nan` in
-// x/y/z mean the marker was not seen (counted, skipped). `marker_id` selects
-// one marker when the file holds several (-1: the file must hold one id).
+// A marker asked for by id, label or both. A labelled export looks up the
+// label (the exact label, or the part after the last ':' of exactly one
+// label: "Subject:RHand" answers "RHand"), or without one the id (its 1-based
+// position); the long CSV looks up the id (marker_id), and a label without an
+// id is an error there.
+struct MarkerRef {
+  int id = -1;
+  std::string label;
+  std::string text() const { return label.empty() ? std::to_string(id) : label; }
+};
+// "12" is an id, anything else a label.
+MarkerRef marker_ref(const std::string& text);
+
+struct MarkerSeries {
+  std::string source;
+  std::vector<MarkerSample> samples;  // in file order
+  std::size_t other_ids = 0;          // rows of markers that were not selected (counted, not used)
+  MarkerFileInfo info;
+  std::vector<int> ids;     // the id each requested MarkerRef resolved to
+  std::size_t thinned = 0;  // samples dropped to stay within kMaxMarkerSamples
+};
+
+// Reads the markers `wanted` from a file of any MarkerFormat, selected by
+// content. Empty `wanted`: the file must hold one marker. Every wanted marker
+// must exist (labels are checked against the header before the body is read)
+// and have samples. Samples of a marker must increase in time.
+MarkerSeries read_markers(const std::string& path, const std::vector<MarkerRef>& wanted);
+MarkerSeries parse_markers(const std::string& text, const std::string& name,
+                           const std::vector<MarkerRef>& wanted);
+
+// The long CSV: header `utime_us,x_mm,y_mm,z_mm[,marker_id]`. Empty fields or
+// `nan` in x/y/z mean the marker was not seen (counted, skipped). `marker_id`
+// selects one marker when the file holds several (-1: the file must hold one id).
 // utime_us must increase from row to row of each marker.
 MarkerSeries read_marker_csv(const std::string& path, int marker_id = -1);
 MarkerSeries parse_marker_csv(const std::string& text, const std::string& name, int marker_id = -1);
@@ -124,8 +183,9 @@ struct AlignmentStats {
   std::size_t outside_encoder_log = 0;
   std::size_t encoder_gap = 0;  // bracketing encoder samples too far apart
   std::size_t unhomed_or_faulted = 0;
-  std::size_t thinned = 0;    // dropped by max_points
-  std::size_t other_ids = 0;  // rows of markers not selected (MarkerSeries::other_ids)
+  std::size_t thinned = 0;          // dropped by max_points
+  std::size_t other_ids = 0;        // rows of markers not selected (MarkerSeries::other_ids)
+  std::size_t thinned_reading = 0;  // dropped by the readers' memory bound (both streams)
 };
 
 std::vector<AlignedSample> align(const EncoderSeries& enc, const MarkerSeries& markers,

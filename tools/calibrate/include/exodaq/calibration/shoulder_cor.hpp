@@ -3,9 +3,13 @@
 // docs/shoulder-cor.md): torso markers normalise every frame to the first one
 // by a least-squares rigid transform (SVD, Umeyama 1991); frames are binned by
 // humerus elevation; within a bin, random pairs of frames give the humerus'
-// rotation axis each, and the centre of rotation is the point closest to those
-// axes (least squares), after outlying axes are dropped around a first
-// estimate (a common-centre sphere fit of the humerus markers). Pure math: no I/O.
+// rotation axis each; outlying axes are dropped around a first estimate (a
+// common-centre sphere fit of the humerus markers); the centre of rotation is
+// then the least-squares centre of the kept pairs' motions (by default allowed
+// to move linearly with elevation within the bin, reported at the bin's mean
+// elevation; or seed 001's point closest to the axes), with its covariance
+// from the pairs' residuals, the spread of the axes, and a flag for
+// components the bin cannot determine. Pure math: no I/O.
 #include <Eigen/Core>
 #include <cstdint>
 #include <optional>
@@ -70,7 +74,20 @@ struct CorOptions {
   double outlier_floor_m = 2e-3;  // ... but never closer than this
   std::size_t min_axes = 10;      // fewer kept axes: no centre for the bin
   std::uint64_t seed = 1;
+  // The centre may move linearly with elevation within a bin (reported at the
+  // bin's mean elevation); false: seed 001's centre at rest, the point
+  // closest to the axes.
+  bool moving_centre = true;
+  // A vertical or horizontal component (or the centre's weakest direction)
+  // is flagged as poorly determined when its 95 % half-width exceeds
+  // max_ci95_m, or max_condition times that of the best-determined
+  // direction (axes nearly parallel: any systematic error, such as a centre
+  // moving within the bin, is amplified along it).
+  double max_ci95_m = 2e-3;
+  double max_condition = 5.0;
 };
+
+inline constexpr double kZ95 = 1.959963984540054;  // two-sided 95 % of the normal distribution
 
 struct CorBin {
   double elevation_lo_rad = 0, elevation_hi_rad = 0;
@@ -89,6 +106,23 @@ struct CorBin {
   double axis_rms_m = 0;        // RMS distance of the kept axes to the centre
   double vertical_m = 0;    // along cranial, relative to the first valid bin (seed 001 Table II)
   double horizontal_m = 0;  // along `horizontal_axis`, relative to the first valid bin
+  // Uncertainty (docs/shoulder-cor.md §3): the centre's covariance (m²,
+  // torso frame) from the kept pairs' residuals (a sandwich estimate that
+  // counts pairs sharing a frame as correlated), its 95 % half-widths per axis, and
+  // those of the relative motions (this bin's and the first bin's combined;
+  // 0 for the first bin itself).
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d ci95_m = Eigen::Vector3d::Zero();
+  double vertical_ci95_m = 0, horizontal_ci95_m = 0;
+  // How spread the kept rotation axes are: the angle of their directions from
+  // the dominant one (RMS); near 0 every axis is parallel and the centre's
+  // component along them is undetermined.
+  double axis_spread_rad = 0;
+  Eigen::Vector3d weak_direction = Eigen::Vector3d::Zero();  // the centre's least determined
+  double weak_ci95_m = 0;                                    // its 95 % half-width
+  Eigen::Vector3d gradient = Eigen::Vector3d::Zero();        // centre motion per rad of elevation
+  bool vertical_poor = false, horizontal_poor = false, ill_conditioned = false;
+  std::string warning;  // what is poorly determined, for people
 };
 
 struct CorResult {

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -110,6 +111,7 @@ struct SolveOptions {
   RobustLoss loss = RobustLoss::kNone;
   double loss_scale_m = 1.0e-3;  // residual (per axis) where the loss bends
   bool estimate_time_offset = false;
+  std::optional<TimeOffsetPrior> time_offset;  // τ's range (default: the bounds file's)
   int max_iterations = 200;
   // Called with progress lines (solver iterations, stages); may be empty.
   std::function<void(const std::string&)> progress;
@@ -176,6 +178,16 @@ struct ObservationSet {
   std::vector<int> newly_identifiable;  // unidentifiable in the first set, identified here
 };
 
+// What the residuals say about a clock offset that was not estimated: the
+// offset τ (encoder = marker + τ) that would best explain them given the
+// estimated parameters, its standard deviation, and the share of the residual
+// sum of squares it explains.
+struct TimeOffsetHint {
+  double offset_s = 0, std_s = 0, explained = 0;
+  // τ stands out of the noise and explains a noticeable share of the residuals.
+  bool significant() const noexcept { return std::abs(offset_s) > 5 * std_s && explained > 0.05; }
+};
+
 struct Report {
   std::size_t points = 0;
   std::size_t residuals = 0;
@@ -183,6 +195,7 @@ struct Report {
   ErrorStats before, after;
   std::array<ParamResult, kParams> params{};
   std::optional<double> time_offset_s, time_offset_std_s;
+  std::optional<TimeOffsetHint> time_offset_hint;  // when τ was not estimated
   std::vector<Degeneracy> degeneracies;
   std::vector<Correlation> correlations;  // |r| > threshold among estimated parameters
   double sigma_m = 0;                     // per-axis residual std estimate
