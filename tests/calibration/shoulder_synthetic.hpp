@@ -28,8 +28,12 @@ struct Options {
   // assumption); false: it moves continuously (Table II at the bin centres,
   // linearly interpolated).
   bool piecewise = true;
+  // > 0: instead, the centre rises linearly with elevation at this rate (and
+  // moves forward by a third of that): the moving-centre model exactly.
+  double linear_mm_per_deg = 0.0;
   double occluded_fraction = 0.0;  // humerus marker samples not seen
   double swapped_fraction = 0.0;   // frames with one humerus marker 20 mm off (a camera swap)
+  double elevation_lo_deg = 5.0, elevation_hi_deg = 115.0;  // the arm's range
 };
 
 // Torso-local frame: x lateral (right), y cranial, z ventral.
@@ -57,23 +61,26 @@ inline double vertical_m(double e, bool piecewise) {
   return (kTable2Mm[i] + (x - i) * (kTable2Mm[i + 1] - kTable2Mm[i])) * 1e-3;
 }
 
-// Centre of rotation in torso coordinates: up with Table II, a third as much forward.
-inline Eigen::Vector3d centre_local(double e, bool piecewise) {
-  const double v = vertical_m(e, piecewise);
+// Centre of rotation in torso coordinates: up with Table II (or linearly),
+// a third as much forward.
+inline Eigen::Vector3d centre_local(double e, bool piecewise, double linear_mm_per_deg = 0.0) {
+  const double v =
+      linear_mm_per_deg > 0 ? linear_mm_per_deg * 1e-3 * e / kDeg : vertical_m(e, piecewise);
   return kCentreAtRest + Eigen::Vector3d(0.0, v, v / 3.0);
 }
 
-inline double elevation_at(double t) {  // 5°..115° and back, twice in 120 s
-  return (5.0 + 110.0 * (0.5 - 0.5 * std::cos(2 * M_PI * t / 60.0))) * kDeg;
+// 5°..115° and back, twice in 120 s (or between other limits).
+inline double elevation_at(double t, double lo_deg = 5.0, double hi_deg = 115.0) {
+  return (lo_deg + (hi_deg - lo_deg) * (0.5 - 0.5 * std::cos(2 * M_PI * t / 60.0))) * kDeg;
 }
 
 // Humerus orientation: plane of elevation ψ about the vertical, elevation ε,
 // axial rotation ρ; the angle between the arm and "down" is exactly ε.
-inline Eigen::Matrix3d humerus_rotation(double t) {
+inline Eigen::Matrix3d humerus_rotation(double t, double lo_deg = 5.0, double hi_deg = 115.0) {
   const double psi = 35.0 * kDeg * std::sin(2 * M_PI * t / 7.3);
   const double rho = 40.0 * kDeg * std::sin(2 * M_PI * t / 5.1 + 1.0);
   return (Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitY()) *
-          Eigen::AngleAxisd(elevation_at(t), Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(elevation_at(t, lo_deg, hi_deg), Eigen::Vector3d::UnitZ()) *
           Eigen::AngleAxisd(rho, Eigen::Vector3d::UnitY()))
       .toRotationMatrix();
 }
@@ -107,8 +114,9 @@ inline std::vector<MocapFrame> make_frames(const Options& o) {
   for (std::size_t k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) / o.rate_hz;
     const Eigen::Isometry3d T = torso_pose(t);
-    const Eigen::Vector3d c = centre_local(elevation_at(t), o.piecewise);
-    const Eigen::Matrix3d R = humerus_rotation(t);
+    const double e = elevation_at(t, o.elevation_lo_deg, o.elevation_hi_deg);
+    const Eigen::Vector3d c = centre_local(e, o.piecewise, o.linear_mm_per_deg);
+    const Eigen::Matrix3d R = humerus_rotation(t, o.elevation_lo_deg, o.elevation_hi_deg);
     MocapFrame& f = frames[k];
     f.utime_us = 1'700'000'000'000'000LL + static_cast<std::int64_t>(k) * 10'000;
     f.torso.resize(3, 5);

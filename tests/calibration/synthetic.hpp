@@ -144,16 +144,16 @@ inline SyntheticData make_data(const TrajectoryOptions& o,
 
 // Seed 000's hand marker at the palm (id 3), a second hand marker 70 mm up
 // the forearm and 20 mm off its axis (id 4), and three markers on the base
-// (ids 10-12), as in config/calibration/markers_example.yaml.
+// (ids 10-12), as in config/calibration/markers_example.yaml (with its labels).
 inline MarkerLayout rig_layout(bool second_hand, bool base) {
   MarkerLayout l;
   l.source = "synthetic-layout";
-  l.sites.push_back({3, MarkerMount::kHand, {0.0, 0.0, 0.0}});
-  if (second_hand) l.sites.push_back({4, MarkerMount::kHand, {0.020, 0.0, -0.070}});
+  l.sites.push_back({3, MarkerMount::kHand, {0.0, 0.0, 0.0}, "palm"});
+  if (second_hand) l.sites.push_back({4, MarkerMount::kHand, {0.020, 0.0, -0.070}, "forearm"});
   if (base) {
-    l.sites.push_back({10, MarkerMount::kBase, {-0.120, 0.080, -0.060}});
-    l.sites.push_back({11, MarkerMount::kBase, {-0.120, -0.080, -0.060}});
-    l.sites.push_back({12, MarkerMount::kBase, {-0.180, 0.0, 0.050}});
+    l.sites.push_back({10, MarkerMount::kBase, {-0.120, 0.080, -0.060}, "base1"});
+    l.sites.push_back({11, MarkerMount::kBase, {-0.120, -0.080, -0.060}, "base2"});
+    l.sites.push_back({12, MarkerMount::kBase, {-0.180, 0.0, 0.050}, "base3"});
   }
   return l;
 }

@@ -158,6 +158,28 @@ TEST_F(CalibrateCli, TooFewPointsFails) {
   EXPECT_NE(r.output.find("too few calibration points: 10"), std::string::npos) << r.output;
 }
 
+// Issue 28 (minor): --plot x_residuals.png wrote x_residuals_residuals.csv,
+// and the solver printed about 78 progress lines with an unchanged RMS.
+TEST_F(CalibrateCli, ThePlotsCsvIsNotNamedTwiceAndProgressIsShort) {
+  const std::string src = EXODAQ_SOURCE_DIR;
+  const Result r = run("calibrate --encoders " + dir_ + "/enc_val.csv --markers " + dir_ +
+                       "/mocap_val.csv --bounds " + src +
+                       "/config/calibration/bounds_seed000.yaml --max-points 100 -o " + dir_ +
+                       "/p.yaml --plot " + dir_ + "/x_residuals.png");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(std::ifstream(dir_ + "/x_residuals.csv").good());
+  EXPECT_FALSE(std::ifstream(dir_ + "/x_residuals_residuals.csv").good());
+  std::istringstream lines(r.output);
+  std::string line;
+  int iterations = 0, stages = 0;
+  while (std::getline(lines, line)) {
+    iterations += line.find("] iter ") != std::string::npos ? 1 : 0;
+    stages += line.find("] done after ") != std::string::npos ? 1 : 0;
+  }
+  EXPECT_GE(stages, 1);
+  EXPECT_LE(iterations, 15 * stages) << r.output;  // lines where the RMS moved, not every step
+}
+
 // Issue 15 point 6: the calibration file is written safely.
 class CalibrateOutput : public CalibrateCli {
  protected:

@@ -235,6 +235,7 @@ TEST(MarkerLayout, ShippedExampleLoads) {
   ASSERT_EQ(l.sites.size(), expect.sites.size());
   for (std::size_t k = 0; k < l.sites.size(); ++k) {
     EXPECT_EQ(l.sites[k].id, expect.sites[k].id);
+    EXPECT_EQ(l.sites[k].label, expect.sites[k].label);
     EXPECT_EQ(l.sites[k].mount, expect.sites[k].mount);
     for (int i = 0; i < 3; ++i)
       EXPECT_NEAR(l.sites[k].position[i], expect.sites[k].position[i], 1e-15);

@@ -144,10 +144,11 @@ TEST(ShoulderCor, OcclusionsAndSwappedMarkersStayWithin1mm) {
 }
 
 // The realistic case: the centre moves continuously with elevation (Table II
-// at the bin centres, linear between), against the analysis' assumption of a
-// centre at rest within each bin. The bin's centre is compared with the mean
-// of the true centre over the frames whose true elevation lies in the bin: it
-// is biased by up to 4.9 mm (3-D), 2.1 mm in the vertical (docs/shoulder-cor.md).
+// at the bin centres, linear between: a kink at each bin centre). The moving-
+// centre model is linear within a bin; the bin's centre is compared with the
+// mean of the true centre over the frames whose true elevation lies in the
+// bin: within 0.5 mm (3-D), 0.4 mm in the vertical (docs/shoulder-cor.md; the
+// centre at rest of seed 001 was 4.8 mm and 2.1 mm off).
 TEST(ShoulderCor, ContinuouslyMovingCentreIsNearTheBinAverage) {
   Options o;
   o.piecewise = false;
@@ -169,8 +170,8 @@ TEST(ShoulderCor, ContinuouslyMovingCentreIsNearTheBinAverage) {
     const Eigen::Vector3d d = r.bins[k].centre - expect;
     std::cout << "bin " << k << ": centre - bin average of the true centre " << d.norm() * 1e3
               << " mm (vertical " << d.dot(r.cranial) * 1e3 << " mm) \n";
-    EXPECT_LT(d.norm(), 6e-3) << "bin " << k;
-    EXPECT_LT(std::abs(d.dot(r.cranial)), 2.5e-3) << "bin " << k;
+    EXPECT_LT(d.norm(), 1e-3) << "bin " << k;
+    EXPECT_LT(std::abs(d.dot(r.cranial)), 0.6e-3) << "bin " << k;
   }
 }
 
@@ -184,6 +185,134 @@ TEST(ShoulderCor, NoCompleteTorsoIsAClearError) {
     EXPECT_STREQ(e.what(),
                  "no frame shows all torso markers (at least 3 needed to hold the torso still)");
   }
+}
+
+}  // namespace
+}  // namespace exodaq::calibration
+
+namespace exodaq::calibration {
+namespace {
+
+using namespace shoulder_synth;  // NOLINT
+
+// Issue 28 part 3: a centre moving linearly with elevation (0.5 mm/deg up,
+// a third of that forward), 20 seeds: the true centre at each bin's mean
+// elevation lies inside the reported 95 % interval of each axis in at least
+// 90 % of the (bin, axis) cases and in its 95 % ellipsoid in 90 % of the
+// bins; the lowest bin, whose vertical is six times less determined than its
+// best direction, is flagged.
+TEST(ShoulderCorUncertainty, TheTruthLiesInsideThe95PercentIntervals) {
+  int inside = 0, cases = 0, inside_3d = 0, bins = 0, flagged = 0;
+  double sum_d2 = 0;  // Mahalanobis distances squared: 3 on average when the covariance is right
+  double widest = 0;
+  for (unsigned seed = 1; seed <= 20; ++seed) {
+    Options o;
+    o.seed = seed;
+    o.piecewise = false;
+    o.linear_mm_per_deg = 0.5;
+    o.duration_s = 60.0;
+    CorOptions co;
+    co.seed = seed;
+    co.pairs_per_bin = 1000;
+    const std::vector<MocapFrame> frames = make_frames(o);
+    const CorResult r = analyse_shoulder_cor(frames, ShoulderAxes{}, co);
+    // The analysis' torso frame is the first frame's as measured: the true
+    // torso markers carried onto the measured ones.
+    Eigen::Matrix3Xd torso0(3, 5);
+    for (int m = 0; m < 5; ++m) torso0.col(m) = torso_pose(0.0) * kTorso[m];
+    const RigidTransform frame = *fit_rigid_transform(torso0, frames.front().torso);
+    // The bins hold frames by measured elevation (the torso's axis from two
+    // noisy markers tilts it by ~0.2 deg): the truth is the centre at the true
+    // mean elevation of the frames in each bin.
+    CorResult unused;
+    const std::vector<MocapFrame> norm = normalise_to_torso(frames, unused);
+    const Eigen::Vector3d caudal = (norm[0].torso.col(1) - norm[0].torso.col(0)).normalized();
+    std::vector<double> true_sum(r.bins.size(), 0.0), count(r.bins.size(), 0.0);
+    for (std::size_t k = 0; k < norm.size(); ++k) {
+      const auto bin = static_cast<std::size_t>(humerus_elevation(norm[k], ShoulderAxes{}, caudal) /
+                                                co.bin_width_rad);
+      if (bin >= r.bins.size()) continue;
+      true_sum[bin] += elevation_at(static_cast<double>(k) / o.rate_hz);
+      count[bin] += 1;
+    }
+    for (std::size_t k = 0; k < r.bins.size(); ++k) {
+      const CorBin& b = r.bins[k];
+      if (!b.valid) continue;
+      const Eigen::Vector3d truth = frame.apply(
+          torso_pose(0.0) * centre_local(true_sum[k] / count[k], false, o.linear_mm_per_deg));
+      const Eigen::Vector3d err = b.centre - truth;
+      for (int k = 0; k < 3; ++k) {
+        ++cases;
+        inside += std::abs(err[k]) <= b.ci95_m[k] ? 1 : 0;
+      }
+      // The 3-D 95 % ellipsoid: chi-square with 3 degrees of freedom, 7.815.
+      ++bins;
+      const double d2 = err.dot(b.covariance.ldlt().solve(err));
+      inside_3d += d2 <= 7.815 ? 1 : 0;
+      sum_d2 += d2;
+      flagged += b.warning.empty() ? 0 : 1;
+      // The lowest bin turns mostly about near-vertical axes: flagged.
+      if (k == 0) {
+        EXPECT_TRUE(b.vertical_poor) << "seed " << seed;
+      }
+      widest = std::max(widest, b.ci95_m.maxCoeff());
+      if (seed == 1) {
+        std::cout << "bin " << b.elevation_lo_rad / kDeg << ": error " << err.transpose() * 1e3
+                  << " mm, 95 % half-widths " << b.ci95_m.transpose() * 1e3 << " mm, spread "
+                  << b.axis_spread_rad / kDeg << " deg " << b.warning << "\n";
+      }
+    }
+  }
+  std::cout << inside << " of " << cases << " axis intervals and " << inside_3d << " of " << bins
+            << " ellipsoids hold the truth (mean squared Mahalanobis distance " << sum_d2 / bins
+            << ", 3 expected); " << flagged << " bins flagged; widest half-width " << widest * 1e3
+            << " mm\n";
+  EXPECT_GE(inside, 0.9 * cases);
+  EXPECT_GE(inside_3d, 0.9 * bins);
+  EXPECT_LE(inside, 0.995 * cases);  // intervals that always hold would be too wide to be honest
+}
+
+}  // namespace
+}  // namespace exodaq::calibration
+
+namespace exodaq::calibration {
+namespace {
+
+using namespace shoulder_synth;  // NOLINT
+
+// The issue's case: near 0° elevation the rotations within a bin turn about
+// nearly vertical axes (axial rotation, plane of elevation) and the centre's
+// vertical component is poorly determined. An arm kept between 8° and 12°:
+// the bin is flagged, its vertical interval is wide against the horizontal
+// ones (and holds the truth).
+TEST(ShoulderCorUncertainty, ABinTurningAboutNearlyParallelAxesIsFlagged) {
+  Options o;
+  o.duration_s = 60.0;
+  o.elevation_lo_deg = 8.0;
+  o.elevation_hi_deg = 12.0;
+  const std::vector<MocapFrame> frames = make_frames(o);
+  const CorResult r = analyse_shoulder_cor(frames, ShoulderAxes{}, CorOptions{});
+  ASSERT_EQ(r.bins.size(), 1u);
+  const CorBin& b = r.bins[0];
+  ASSERT_TRUE(b.valid) << b.why;
+  std::cout << "half-widths " << b.ci95_m.transpose() * 1e3 << " mm, spread "
+            << b.axis_spread_rad / kDeg << " deg, weakest ±" << b.weak_ci95_m * 1e3 << " mm along "
+            << b.weak_direction.transpose() << ": " << b.warning << "\n";
+  EXPECT_TRUE(b.ill_conditioned);
+  EXPECT_TRUE(b.vertical_poor);
+  EXPECT_NE(b.warning.find("poorly determined: vertical ±"), std::string::npos) << b.warning;
+  // The weak direction is the torso's vertical (cranial).
+  EXPECT_GT(std::abs(b.weak_direction.dot(r.cranial)), 0.9);
+  Eigen::Matrix3Xd torso0(3, 5);
+  for (int m = 0; m < 5; ++m) torso0.col(m) = torso_pose(0.0) * kTorso[m];
+  const Eigen::Vector3d truth = fit_rigid_transform(torso0, frames.front().torso)
+                                    ->apply(torso_pose(0.0) * centre_local(10.0 * kDeg, true));
+  const double vertical_error = (b.centre - truth).dot(r.cranial);
+  const double vertical_ci = kZ95 * std::sqrt(r.cranial.dot(b.covariance * r.cranial));
+  EXPECT_LE(std::abs(vertical_error), 2 * vertical_ci);  // within about 4 standard deviations
+  // Across the vertical, five times better determined.
+  const Eigen::Vector3d across = r.cranial.unitOrthogonal();
+  EXPECT_GT(vertical_ci, 5 * kZ95 * std::sqrt(across.dot(b.covariance * across)));
 }
 
 }  // namespace

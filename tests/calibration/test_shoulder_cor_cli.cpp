@@ -44,11 +44,16 @@ TEST_F(ShoulderCorCli, PrintsATableIIStyleTableAndWritesTheBins) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("capture.csv: 12000 frames, 12000 used"), std::string::npos);
   EXPECT_NE(r.output.find("seed 001 Table II"), std::string::npos);
+  // Near 0 deg the axes are nearly vertical: the bin says so.
+  EXPECT_NE(r.output.find("WARNING: bin 0-20 deg: poorly determined: vertical ±"),
+            std::string::npos);
   std::ifstream in(dir_ + "/cor_bins.csv");
   ASSERT_TRUE(in.good());
   std::string header, line;
   std::getline(in, header);
   EXPECT_EQ(header.rfind("bin,elevation_lo_deg,elevation_hi_deg,mean_elevation_deg", 0), 0u);
+  EXPECT_NE(header.find(",vertical_ci95_mm,horizontal_ci95_mm,axis_spread_deg,flags"),
+            std::string::npos);
   // The vertical motion per bin against Table II (the synthetic truth).
   const std::size_t col = 12;  // vertical_mm
   for (std::size_t k = 0; std::getline(in, line); ++k) {
@@ -57,7 +62,23 @@ TEST_F(ShoulderCorCli, PrintsATableIIStyleTableAndWritesTheBins) {
     for (std::size_t c = 0; c <= col; ++c) std::getline(s, field, ',');
     ASSERT_LT(k, 6u);
     EXPECT_NEAR(std::stod(field), shoulder_synth::kTable2Mm[k], 1.0) << "bin " << k;
+    for (std::size_t c = col + 1; c <= col + 6; ++c) std::getline(s, field, ',');
+    const double vertical_ci = std::stod(field);  // vertical_ci95_mm
+    if (k == 0) {
+      EXPECT_EQ(vertical_ci, 0.0);  // the reference bin
+    } else {
+      EXPECT_GT(vertical_ci, 0.05) << "bin " << k;
+      EXPECT_LT(vertical_ci, 1.0) << "bin " << k;
+    }
   }
+}
+
+// --plot cor_bins.png wrote cor_bins_bins.csv.
+TEST_F(ShoulderCorCli, ThePlotsCsvIsNotNamedTwice) {
+  const Result r = run(args() + " --plot " + dir_ + "/x_bins.png");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(std::ifstream(dir_ + "/x_bins.csv").good());
+  EXPECT_FALSE(std::ifstream(dir_ + "/x_bins_bins.csv").good());
 }
 
 TEST_F(ShoulderCorCli, BadMarkerIdsAreClearErrors) {

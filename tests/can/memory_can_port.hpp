@@ -47,8 +47,14 @@ class MemoryCanPort final : public drivers::CanPort {
   void advance_to(std::int64_t t) noexcept {
     if (t > mono) mono = t;
   }
-  // Schedules a frame to arrive at `arrival_mono`.
+  // Schedules a frame to arrive at `arrival_mono`, stamped then.
   void push(const Frame& f, std::int64_t arrival_mono) noexcept {
+    push(f, arrival_mono, arrival_mono);
+  }
+  // A frame the kernel stamped at `stamp_mono` (as it entered the stack) but
+  // queued to the socket only at `arrival_mono` (a receive softirq deferred to
+  // ksoftirqd, a vCPU held off by the host between the two).
+  void push(const Frame& f, std::int64_t arrival_mono, std::int64_t stamp_mono) noexcept {
     if (admit && !admit(f)) {
       ++filtered;
       return;
@@ -56,6 +62,7 @@ class MemoryCanPort final : public drivers::CanPort {
     Slot& s = ring_[static_cast<std::size_t>((head_ + size_) % kRing)];
     s.frame = f;
     s.arrival = arrival_mono;
+    s.stamp = stamp_mono;
     ++size_;
   }
   // The interface goes down: the socket reports −ENETDOWN once, queued frames are lost.
@@ -103,7 +110,7 @@ class MemoryCanPort final : public drivers::CanPort {
     int n = 0;
     while (n < max && size_ > 0 && front().arrival <= mono) {
       Frame f = front().frame;
-      f.wall_ns = stamp ? front().arrival + kWallOffsetNs : 0;
+      f.wall_ns = stamp ? front().stamp + kWallOffsetNs : 0;
       f.mono_ns = 0;
       if (!stamp) ++info.unstamped;
       frames[n++] = f;
@@ -143,6 +150,7 @@ class MemoryCanPort final : public drivers::CanPort {
   struct Slot {
     Frame frame{};
     std::int64_t arrival = 0;
+    std::int64_t stamp = 0;
   };
   const Slot& front() const noexcept { return ring_[static_cast<std::size_t>(head_)]; }
 

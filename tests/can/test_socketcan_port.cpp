@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <set>
@@ -79,31 +80,66 @@ int receive_all(CanPort& port, std::vector<can::CanFrame>& out, CanRxInfo& info)
   return 0;
 }
 
+// The kernel turns receive timestamping on lazily: the first socket asking
+// for it flips a static key from a work item, so frames received before that
+// work ran come without a stamp (docs/can-protocol.md, "Time stamp"). A frame
+// is then stamped 0 and counted in CanRxInfo::unstamped, never given a wrong
+// stamp; once the kernel stamps, every frame is stamped.
 TEST(SocketCanPort, FiltersErrorFramesAndKernelTimestamps) {
   REQUIRE_VCAN();
   auto port = make_socketcan_port(config());
   ASSERT_EQ(port->open(), 0);
   Peer peer;
-  const std::int64_t before = wall_now();
-  peer.send(0x181, 8);                          // COUNTS_A: in the board's block
-  peer.send(0x185, 8);                          // unused ID of the block: admitted (bad frame)
-  peer.send(0x123, 1);                          // another node's ID: filtered by the kernel
-  peer.send(0x1A1, 8);                          // board 1's COUNTS_A: filtered
-  peer.send(0x701, 4);                          // HEARTBEAT
-  peer.send(CAN_ERR_FLAG | CAN_ERR_BUSOFF, 8);  // error frame (subscribed)
-  peer.send(0x080, 0);                          // SYNC: not admitted when we are the master
-  std::vector<can::CanFrame> got;
-  CanRxInfo info;
-  ASSERT_EQ(receive_all(*port, got, info), 0);
-  const std::int64_t after = wall_now();
-  std::set<std::uint32_t> ids;
-  for (const auto& f : got) {
-    ids.insert((f.flags & can::frame_flag::kError) != 0 ? 0xE0000000U | f.id : f.id);
-    EXPECT_GE(f.wall_ns, before);  // kernel receive stamp, CLOCK_REALTIME
-    EXPECT_LE(f.wall_ns, after);
+  const auto send_block = [&peer] {
+    peer.send(0x181, 8);                          // COUNTS_A: in the board's block
+    peer.send(0x185, 8);                          // unused ID of the block: admitted (bad frame)
+    peer.send(0x123, 1);                          // another node's ID: filtered by the kernel
+    peer.send(0x1A1, 8);                          // board 1's COUNTS_A: filtered
+    peer.send(0x701, 4);                          // HEARTBEAT
+    peer.send(CAN_ERR_FLAG | CAN_ERR_BUSOFF, 8);  // error frame (subscribed)
+    peer.send(0x080, 0);                          // SYNC: not admitted when we are the master
+  };
+  const std::set<std::uint32_t> admitted{0x181, 0x185, 0x701, 0xE0000000U | CAN_ERR_BUSOFF};
+  // One block of frames: the IDs admitted, each frame's stamp within the
+  // block's window or 0, and the unstamped ones counted. Returns how many
+  // were unstamped.
+  const auto receive_block = [&](const char* what) {
+    const std::int64_t before = wall_now();
+    send_block();
+    std::vector<can::CanFrame> got;
+    CanRxInfo info;
+    EXPECT_EQ(receive_all(*port, got, info), 0) << what;
+    const std::int64_t after = wall_now();
+    std::set<std::uint32_t> ids;
+    int zero = 0;
+    for (const auto& f : got) {
+      ids.insert((f.flags & can::frame_flag::kError) != 0 ? 0xE0000000U | f.id : f.id);
+      if (f.wall_ns == 0) {
+        ++zero;
+        continue;
+      }
+      EXPECT_GE(f.wall_ns, before) << what;  // kernel receive stamp, CLOCK_REALTIME
+      EXPECT_LE(f.wall_ns, after) << what;
+    }
+    EXPECT_EQ(ids, admitted) << what;
+    EXPECT_EQ(info.unstamped, zero) << what;
+    return zero;
+  };
+  const int unstamped_first = receive_block("first block");
+  // Until the kernel stamps (its work item has run): one frame at a time.
+  bool stamped = unstamped_first < static_cast<int>(admitted.size());
+  for (int i = 0; i < 500 && !stamped; ++i) {
+    peer.send(0x181, 8);
+    std::vector<can::CanFrame> got;
+    CanRxInfo info;
+    ASSERT_EQ(receive_all(*port, got, info), 0);
+    for (const auto& f : got) stamped = stamped || f.wall_ns != 0;
   }
-  EXPECT_EQ(ids, (std::set<std::uint32_t>{0x181, 0x185, 0x701, 0xE0000000U | CAN_ERR_BUSOFF}));
-  EXPECT_EQ(info.unstamped, 0);
+  ASSERT_TRUE(stamped) << "no frame ever came with a kernel timestamp";
+  // From then on every frame is stamped, within its window.
+  EXPECT_EQ(receive_block("after the kernel stamps"), 0);
+  std::printf("SocketCanPort: %d of the first %zu frames unstamped\n", unstamped_first,
+              admitted.size());
 }
 
 // Two boards on one bus (docs/can-protocol.md, "Several boards on one bus"):

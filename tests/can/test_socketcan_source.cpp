@@ -530,6 +530,70 @@ TEST(SocketCanSource, FreeRunningACycleQueuedBeforeTheOverdueClockReadingIsTaken
   EXPECT_EQ(f.source->stats().missing_samples, 1);
 }
 
+// Following a free-running board whose cycle 1 the kernel stamped 1.11
+// periods after cycle 0 (as it entered the stack) but queued to the socket
+// only 2.3 periods after it (the receive softirq deferred to ksoftirqd, or the
+// sender's vCPU held off by the host between the two: the VM's free-running
+// stage under host load). MISSING is judged on what reached the socket by the
+// overdue clock reading, not on stamps: wake 2 finds nothing 2.0 periods after
+// the last sample and publishes MISSING; the cycle is published at the next
+// wake, with its own stamp, after the MISSING (docs/can-protocol.md, "One
+// cycle", step 7).
+TEST(SocketCanSource, FreeRunningACycleQueuedAfterTheOverdueReadingIsMissingThenPublished) {
+  Fixture f(false);
+  f.source->start();
+  f.cycle_frames(0, f.deadline(0) + 390'000);
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  const std::int64_t heard = f.sample.mono_ns;
+  const std::int64_t stamp_a = f.deadline(1) + 500'000, stamp_b = stamp_a + 10'000;
+  const std::int64_t queued = f.deadline(2) + 700'000;
+  f.port->push(can::encode_counts(0, {1, 2, 3}, 0, 1), queued, stamp_a);
+  f.port->push(can::encode_counts(1, {4, 5, 6}, 0, 1), queued, stamp_b);
+  EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);  // 1.0 periods: not overdue
+  ASSERT_EQ(f.cycle(2), ReadStatus::kNoSample);    // 2.0 periods, nothing in the socket
+  EXPECT_NE(f.sample.flags & sample_flag::kMissing, 0U);
+  EXPECT_LT(stamp_b - heard, kPeriod + kPeriod / 2);  // the stamps show no such silence
+  EXPECT_LT(f.port->mono, queued);
+  ASSERT_EQ(f.cycle(3), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.mono_ns, stamp_b);
+  EXPECT_EQ(f.sample.flags & sample_flag::kMissing, 0U);
+  EXPECT_EQ(f.source->stats().missing_samples, 1);
+  EXPECT_EQ(f.source->stats().seq_gaps, 0);
+  EXPECT_EQ(f.source->stats().superseded_samples, 0);
+}
+
+// Following a free-running board, the kernel queues cycle 1 to the socket
+// after cycle 2 (the board simulator sent them from two vCPUs, cycle 1's
+// receive softirq deferred). The decoder has closed cycle 2 when cycle 1's
+// frames come: both are dropped as out of order and counted, cycle 2 carries
+// SEQ_GAP (one cycle lost) and the next sample OUT_OF_ORDER: the board cycle
+// is not published, and it is counted (docs/can-protocol.md, "Cycle assembly").
+TEST(SocketCanSource, FreeRunningACycleQueuedAfterANewerOneIsCountedOutOfOrder) {
+  Fixture f(false);
+  f.source->start();
+  f.cycle_frames(0, f.deadline(0) + 100'000);
+  ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
+  const std::int64_t late = f.deadline(1) + 950'000;  // both in the socket before wake 2
+  f.cycle_frames(2, f.deadline(1) + 900'000);         // cycle 2 sent late, queued first
+  f.port->push(can::encode_counts(0, {1, 2, 3}, 0, 1), late, f.deadline(1) + 100'000);
+  f.port->push(can::encode_counts(1, {4, 5, 6}, 0, 1), late, f.deadline(1) + 110'000);
+  f.cycle_frames(3, f.deadline(3) + 100'000);
+  EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);
+  ASSERT_EQ(f.cycle(2), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.board_seq, 2);
+  EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, sample_flag::kSeqGap);
+  EXPECT_EQ(f.source->backlog(), 0);
+  ASSERT_EQ(f.cycle(3), ReadStatus::kSample);
+  EXPECT_EQ(f.sample.board_seq, 3);
+  EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, sample_flag::kOutOfOrder);
+  EXPECT_EQ(f.source->stats().out_of_order, 2);
+  EXPECT_EQ(f.source->stats().seq_gaps, 1);
+  EXPECT_EQ(f.source->decoder().detail().lost_cycles, 1);
+  EXPECT_EQ(f.source->stats().missing_samples, 0);
+  EXPECT_EQ(f.source->stats().superseded_samples, 0);
+}
+
 // Following a free-running board that stops half-way through a cycle: its
 // COUNTS_A comes 1.17 periods after the last sample, COUNTS_B never. The
 // reader wakes late, 1.56 periods after that sample and 0.39 after the half:

@@ -5,11 +5,13 @@
 //   exodaq_lcm_fixture dump                 canonical text of the four messages
 //   exodaq_lcm_fixture write DIR            DIR/<type>.bin, the encoded bytes
 //   exodaq_lcm_fixture publish URL PREFIX [--count N] [--interval-ms M] [--vary-seq]
-//                                           [--big BYTES]
+//                                           [--big BYTES] [--clock-unknown]
 //       publishes the four messages on PREFIX + EXO_* every M ms, N times;
 //       --vary-seq adds the iteration number to seq, mono_ns and utime;
 //       --big also publishes BYTES bytes (i*7+3 mod 256) on PREFIX + BIG, which
-//       LCM sends as fragmented LC03 datagrams when large enough.
+//       LCM sends as fragmented LC03 datagrams when large enough;
+//       --clock-unknown gives the status the kernel's "no estimate" clock
+//       errors (16 s) and no foreign run (what JSON writes as null).
 //       With EXODAQ_FIXTURE_SENDER=exodaq in the environment the messages go
 //       out through exodaqd's own sender (core/udpm_sender.hpp) instead of
 //       LCM's, so the stock subscribers are tested against its datagrams.
@@ -298,6 +300,7 @@ int publish(int argc, char** argv) {
   long interval_ms = 20;
   bool vary = false;
   long big = 0;
+  bool clock_unknown = false;
   for (int i = 4; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--count" && i + 1 < argc) {
@@ -308,6 +311,8 @@ int publish(int argc, char** argv) {
       vary = true;
     } else if (a == "--big" && i + 1 < argc) {
       big = std::atol(argv[++i]);
+    } else if (a == "--clock-unknown") {
+      clock_unknown = true;
     } else {
       return usage();
     }
@@ -338,6 +343,11 @@ int publish(int argc, char** argv) {
     auto p = make_palm_pose();
     auto e = make_encoder_raw();
     auto s = make_status();
+    if (clock_unknown) {
+      s.clock_est_error_us = 16'000'000.0;
+      s.clock_max_error_us = 16'000'000.0;
+      s.foreign_run_id = 0;
+    }
     if (vary) shift(j, k), shift(p, k), shift(e, k), shift(s, k);
     // Encode into our own buffers and publish raw bytes, as the daemon does.
     const auto bj = encode(j), bp = encode(p), be = encode(e), bs = encode(s);

@@ -322,22 +322,38 @@ def run_status(fixture, url, tool):
 def run_status_json(fixture, url, tool):
     import json
     prefix = unique_prefix("status_json")
-    with Publisher(fixture, url, prefix):
-        r = run_tool(tool, ["status", "--url", url, "--prefix", prefix, "--timeout", str(WAIT_S),
-                            "--json"])
-    if r.returncode != 0:
-        fail("status --json exited %d: %s" % (r.returncode, r.stderr))
-    s = json.loads(r.stdout)
-    want = {"channel": prefix + "EXO_STATUS", "rig": "sim-rig, bench 2", "state": 3,
-            "run_id": "fedcba9876543211", "overruns": 3, "clock_synchronised": 1,
-            "wrist_pronation_homing": 2, "config_path": "/etc/exodaq/exodaqd.yaml",
+
+    def status_json(*extra):
+        with Publisher(fixture, url, prefix, *extra):
+            r = run_tool(tool, ["status", "--url", url, "--prefix", prefix, "--timeout",
+                                str(WAIT_S), "--json"])
+        if r.returncode != 0:
+            fail("status --json exited %d: %s" % (r.returncode, r.stderr))
+        return json.loads(r.stdout)
+
+    s = status_json()
+    # States, homing and flags by name; booleans as booleans; no enum as a number.
+    want = {"channel": prefix + "EXO_STATUS", "rig": "sim-rig, bench 2", "state": "DEGRADED",
+            "run_id": "fedcba9876543211", "overruns": 3, "clock_synchronised": True,
+            "bus_state": "WARNING", "clock_est_error_us": 16, "clock_max_error_us": 500,
+            "wrist_pronation_homing": "REJECTED", "shoulder_flexion_homing": "UNHOMED",
+            "elbow_flexion_flags": ["STALE"], "shoulder_abduction_flags": [],
+            "config_path": "/etc/exodaq/exodaqd.yaml",
             "calibration_sha256":
                 "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855",
             "reloads": 3, "foreign_run_id": "0123456789abcdef"}
     for k, v in want.items():
-        if s.get(k) != v:
+        if s.get(k) != v or type(s.get(k)) is not type(v):
             fail("status --json: %s = %r, expected %r" % (k, s.get(k), v))
-    print("status --json: one object in the CSV schema's names")
+    for k, v in s.items():
+        if (k in ("state", "bus_state") or k.endswith("_homing")) and not isinstance(v, str):
+            fail("status --json: %s = %r is not a name" % (k, v))
+    # The kernel's "no estimate" and no foreign run: null, not 16000000 or 0.
+    s = status_json("--clock-unknown")
+    for k in ("clock_est_error_us", "clock_max_error_us", "foreign_run_id"):
+        if k not in s or s[k] is not None:
+            fail("status --json with the clock unknown: %s = %r, expected null" % (k, s.get(k)))
+    print("status --json: one object in the CSV schema's names, enums by name, unknown null")
 
 
 def run_status_timeout(fixture, url, tool):

@@ -15,6 +15,8 @@
 #include <numbers>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <variant>
 #include <vector>
 
 namespace msg = exodaq::msg;
@@ -62,6 +64,89 @@ TEST(Subscriber, KindOfPayloadUsesTheFingerprint) {
   EXPECT_FALSE(msg::kind_of_payload(bj.data(), 7).has_value());
   const char junk[16] = {1, 2, 3, 4, 5, 6, 7, 8};
   EXPECT_FALSE(msg::kind_of_payload(junk, sizeof junk).has_value());
+}
+
+// One all-zero message of every kind of the list, in kind order.
+template <std::size_t... I>
+std::vector<msg::Message> blank_messages(std::index_sequence<I...>) {
+  return {msg::Message(std::in_place_index<I>)...};
+}
+std::vector<msg::Message> every_kind() {
+  return blank_messages(std::make_index_sequence<std::variant_size_v<msg::Message>>{});
+}
+
+std::vector<char> encode_any(const msg::Message& m) {
+  return std::visit([](const auto& v) { return encode(v); }, m);
+}
+
+// Every kind of the list is recognised by its fingerprint, decodes as itself
+// and as no other kind, has a channel and names that lead back to it, and CSV
+// columns that match its values: what the list derives, checked for each line.
+TEST(MessageList, EveryKindIsItselfEverywhere) {
+  const auto all = every_kind();
+  ASSERT_EQ(all.size(), msg::kAllKinds.size());
+  ASSERT_GE(all.size(), 5U);
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    const msg::Kind k = msg::kAllKinds[i];
+    const std::string type(msg::type_name(k));
+    EXPECT_EQ(msg::kind_of(all[i]), k) << type;
+    const auto bytes = encode_any(all[i]);
+    EXPECT_EQ(msg::kind_of_payload(bytes.data(), bytes.size()), k) << type;
+    for (const msg::Kind other : msg::kAllKinds) {
+      const auto decoded = msg::decode(other, bytes.data(), bytes.size());
+      EXPECT_EQ(decoded.has_value(), other == k) << type << " as " << msg::type_name(other);
+      if (decoded) {
+        EXPECT_EQ(msg::kind_of(*decoded), k);
+      }
+    }
+    EXPECT_EQ(msg::parse_kind(type), k);
+    EXPECT_EQ(msg::parse_kind(type.substr(0, type.size() - 2)), k) << type;
+    EXPECT_EQ(msg::parse_kind(msg::base_channel(k)), k) << type;
+    const auto parts = msg::split_channel(msg::channel_name("RIG2_", k));
+    ASSERT_TRUE(parts.has_value()) << type;
+    EXPECT_EQ(parts->prefix, "RIG2_");
+    EXPECT_EQ(parts->kind, k);
+    std::vector<std::string> values;
+    msg::csv::append_values(all[i], values);
+    EXPECT_EQ(msg::csv::header(k, msg::csv::numbered_joints()).size(), values.size()) << type;
+  }
+}
+
+// The wire formats: a change here is a change of every recording and every
+// client's generated types (an LCM fingerprint covers the names and types of
+// all fields). Types added to the list later are covered by the test above.
+TEST(MessageList, FingerprintsOfTheFirstFiveTypesAreUnchanged) {
+  const std::pair<msg::Kind, std::uint64_t> golden[] = {
+      {msg::Kind::kJointState, 0x3abbf41b00120c0aULL},
+      {msg::Kind::kPalmPose, 0x45316e9d1908ff1dULL},
+      {msg::Kind::kEncoderRaw, 0x2b9ba15490a8aeb1ULL},
+      {msg::Kind::kStatus, 0xabf6b6946b45ab99ULL},
+      {msg::Kind::kHoming, 0x5849a47166a8619eULL}};
+  const auto all = every_kind();
+  for (const auto& [k, fp] : golden) {
+    const auto bytes = encode_any(all[static_cast<std::size_t>(k)]);
+    std::uint64_t got = 0;
+    for (int i = 0; i < 8; ++i) got = (got << 8) | static_cast<unsigned char>(bytes[i]);
+    EXPECT_EQ(got, fp) << msg::type_name(k);
+  }
+}
+
+TEST(MessageList, PerCycleKindsAreTheCycleStreams) {
+  EXPECT_TRUE(msg::is_per_cycle(msg::Kind::kJointState));
+  EXPECT_TRUE(msg::is_per_cycle(msg::Kind::kPalmPose));
+  EXPECT_TRUE(msg::is_per_cycle(msg::Kind::kEncoderRaw));
+  EXPECT_FALSE(msg::is_per_cycle(msg::Kind::kStatus));
+  EXPECT_FALSE(msg::is_per_cycle(msg::Kind::kHoming));
+}
+
+TEST(MessageList, AliasesAreWholeWordsOfOneKind) {
+  EXPECT_EQ(msg::parse_kind("joints"), msg::Kind::kJointState);
+  EXPECT_EQ(msg::parse_kind("JOINT"), msg::Kind::kJointState);
+  EXPECT_EQ(msg::parse_kind("Pose"), msg::Kind::kPalmPose);
+  EXPECT_EQ(msg::parse_kind("encoder"), msg::Kind::kEncoderRaw);
+  EXPECT_FALSE(msg::parse_kind("joint joints").has_value());
+  EXPECT_FALSE(msg::parse_kind("join").has_value());
+  EXPECT_FALSE(msg::parse_kind(" ").has_value());
 }
 
 TEST(Subscriber, DecodeRejectsWrongTypeAndTruncation) {
@@ -276,16 +361,50 @@ TEST(CsvSchema, QuotesOnlyWhenNeededAndSplitsBack) {
   EXPECT_FALSE(msg::csv::split("\"open", back));
 }
 
+// Strings from the network in a log line or on a terminal (issue 25.10: a
+// foreign status's rig with a line break and ANSI escapes).
+TEST(Printable, EscapesControlCharactersAndKeepsUtf8) {
+  EXPECT_EQ(msg::printable("rig-b"), "rig-b");
+  EXPECT_EQ(msg::printable("evil\nline\x1b[31mred\r\t\x7f"), "evil\\nline\\x1b[31mred\\r\\t\\x7f");
+  EXPECT_EQ(msg::printable(std::string("a\0b", 3)), "a\\x00b");
+  EXPECT_EQ(msg::printable("Zürich µ 日本 🐒"), "Zürich µ 日本 🐒");  // UTF-8 kept
+  EXPECT_EQ(msg::printable("\xc3"), "\\xc3");                       // truncated sequence
+  EXPECT_EQ(msg::printable("\xc0\xaf"), "\\xc0\\xaf");              // overlong '/'
+  EXPECT_EQ(msg::printable("\xed\xa0\x80"), "\\xed\\xa0\\x80");     // a surrogate
+  EXPECT_EQ(msg::printable("\xc2\x9b"
+                           "31m"),
+            "\\xc2\\x9b"
+            "31m");  // C1 CSI
+  const std::string once = msg::printable("x\ny\x1b");
+  EXPECT_EQ(msg::printable(once), once);  // idempotent
+}
+
 TEST(Subscriber, FlagNames) {
   using J = exodaq::joint_state_t;
   EXPECT_EQ(msg::joint_flag_names(0), "-");
   EXPECT_EQ(msg::joint_flag_names(int32_t{J::JOINT_STALE} | J::JOINT_HELD), "STALE|HELD");
   EXPECT_EQ(msg::joint_flag_names(J::JOINT_UNHOMED | 0x1000), "UNHOMED|0x1000");
   EXPECT_EQ(msg::sample_flag_names(int32_t{J::SAMPLE_SEQ_GAP} | J::SAMPLE_LATE), "SEQ_GAP|LATE");
+  EXPECT_EQ(msg::sample_flag_names(J::SAMPLE_NEW_SEGMENT), "NEW_SEGMENT");
+  EXPECT_EQ(J::SAMPLE_NEW_SEGMENT, 4096);
   EXPECT_EQ(msg::invalid_reason_names(exodaq::palm_pose_t::INVALID_CLOCK), "CLOCK");
   EXPECT_EQ(msg::state_name(exodaq::status_t::STATE_FAULT), "FAULT");
   EXPECT_EQ(msg::bus_state_name(exodaq::status_t::BUS_OFF), "OFF");
   EXPECT_EQ(msg::homing_name(exodaq::status_t::HOMING_REJECTED), "REJECTED");
+  // The same names into a buffer (the loop's status text), cut short to fit.
+  char text[11];
+  const std::int32_t stale_held = int32_t{J::JOINT_STALE} | J::JOINT_HELD;
+  EXPECT_EQ(msg::write_joint_flag_names(stale_held, text, sizeof text), 10u);
+  EXPECT_EQ(std::string(text), "STALE|HELD");
+  EXPECT_EQ(msg::write_joint_flag_names(stale_held, text, 6), 5u);
+  EXPECT_EQ(std::string(text), "STALE");
+  EXPECT_EQ(msg::write_sample_flag_names(0, text, sizeof text), 1u);
+  EXPECT_EQ(std::string(text), "-");
+  // And one per bit, for JSON arrays.
+  EXPECT_EQ(msg::joint_flag_list(stale_held), (std::vector<std::string>{"STALE", "HELD"}));
+  EXPECT_EQ(msg::joint_flag_list(J::JOINT_GLITCH | 0x1000),
+            (std::vector<std::string>{"GLITCH", "0x1000"}));
+  EXPECT_TRUE(msg::joint_flag_list(0).empty());
 }
 
 }  // namespace

@@ -97,6 +97,24 @@ std::vector<BadCase> cases() {
        "unknown key 'dir' in encoders.joints[4]"},
       {"bad_url", 22, "  url: \"tcp://10.0.0.1:7667\"", 22,
        "lcm.url must be an LCM URL (udpm://group:port?ttl=N)"},
+      // Issue 25.10: plausibility. A joint bound that crosses the joint's whole
+      // range (the model's limits) in under 50 ms lets glitches pass as motion.
+      {"speed_beyond_anatomy", 13, "    - {channel: 0, direction: 1, max_speed_rad_s: 308}", 13,
+       "encoders.joints[0].max_speed_rad_s 308 is beyond joint 'shoulder_azimuth': it would "
+       "cross its whole range (191 deg, model '" +
+           cfg +
+           "models/macaque_exo.yaml') in 10.8 ms; at most 66.6 rad/s (the whole range in 50 "
+           "ms): a faster bound lets count glitches pass as motion"},
+      {"speed_just_beyond_the_elbow", 17, "    - {channel: 4, direction: 1, max_speed_rad_s: 34}",
+       17, "encoders.joints[4].max_speed_rad_s 34 is beyond joint 'elbow_flexion'"},
+      // A unicast lcm.url failed only when the daemon started.
+      {"unicast_url", 22, "  url: \"udpm://10.0.0.1:7667?ttl=0\"", 22,
+       "lcm.url group 10.0.0.1 is a unicast address: udpm:// needs a multicast group, 224.0.0.0 "
+       "to 239.255.255.255 (239.255.76.67 is LCM's default)"},
+      {"url_group_not_an_address", 22, "  url: \"udpm://lcm-group:7667\"", 22,
+       "lcm.url group 'lcm-group' is not an IPv4 address"},
+      {"url_without_port", 22, "  url: \"udpm://239.255.76.67?ttl=0\"", 22,
+       "lcm.url needs a port 1..65535 after the group (udpm://239.255.76.67:7667)"},
       {"bad_require_sync", 24, "  require_sync: maybe", 24,
        "'require_sync' must be one of ignore, mark, hold, found 'maybe'"},
       {"bad_log_level", 26, "  level: loud", 26,
@@ -131,6 +149,16 @@ TEST_P(BadConfig, NamesFileLineAndWhatAndExitsOne) {
 
 INSTANTIATE_TEST_SUITE_P(Cases, BadConfig, ::testing::ValuesIn(cases()),
                          [](const auto& info) { return std::string(info.param.name); });
+
+// The speed bound at its limit: the elbow's 96.8 deg in 50 ms is 33.79 rad/s.
+TEST(BadConfig, ASpeedBoundWithinTheAnatomyIsValid) {
+  const std::string dir = exodaq::test::make_temp_dir("speedcfg");
+  auto lines = base_lines();
+  lines[16] = "    - {channel: 4, direction: 1, max_speed_rad_s: 33.7}";
+  const std::string path = write(dir, "fast_elbow.yaml", lines);
+  const auto r = exodaq::test::run({EXODAQD, "--config", path, "--check-config"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+}
 
 TEST(BadConfig, TheBaseConfigurationIsValid) {
   const std::string dir = exodaq::test::make_temp_dir("goodcfg");

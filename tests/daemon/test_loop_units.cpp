@@ -218,6 +218,135 @@ TEST(ServiceStateMachine, AForeignRunDegradesEvenWhileHomingButNotAFault) {
   EXPECT_EQ(core::next_state(S::kStopping, foreign, 0, 500), S::kStopping);
 }
 
+// Every degraded or fault state carries its reason, with the value that
+// crossed and the threshold; the window's other reasons ride along.
+TEST(ServiceStateMachine, EveryDegradedOrFaultStateCarriesItsReasonAndThreshold) {
+  using S = core::ServiceState;
+  using R = core::StateReason;
+  const auto bit = [](R r) { return 1U << static_cast<unsigned>(r); };
+  core::WindowFacts f = clean_window();
+  EXPECT_EQ(core::judge(S::kRunning, f, 0, 500).cause.reason, R::kNone);
+  f.overruns = 60;
+  f.publish_failures = 2;
+  core::Verdict v = core::judge(S::kRunning, f, 0, 500);
+  EXPECT_EQ(v.state, S::kDegraded);
+  EXPECT_EQ(v.cause.reason, R::kOverruns);
+  EXPECT_EQ(v.cause.value, 60);
+  EXPECT_EQ(v.cause.threshold, 0);
+  EXPECT_EQ(v.cause.also, bit(R::kPublishFailures));
+  // The overrun comes first: the seq gaps and stale joints follow from it.
+  f.joint_flags_or[4] = core::joint_flag::kStale | core::joint_flag::kHeld;
+  f.joint_flags_or[5] = core::joint_flag::kGlitch;
+  f.sample_flags_or = flag::kSeqGap | flag::kLate;
+  v = core::judge(S::kRunning, f, 0, 500);
+  EXPECT_EQ(v.cause.reason, R::kOverruns);
+  EXPECT_EQ(v.cause.also, bit(R::kJointFault) | bit(R::kSampleFlags) | bit(R::kPublishFailures));
+  // Without it, the joint fault names the first joint with one.
+  f.overruns = 0;
+  v = core::judge(S::kRunning, f, 0, 500);
+  EXPECT_EQ(v.cause.reason, R::kJointFault);
+  EXPECT_EQ(v.cause.joint, 4);
+  EXPECT_EQ(v.cause.flags, core::joint_flag::kStale | core::joint_flag::kHeld);
+  EXPECT_EQ(v.cause.value, 2);  // joints with a fault
+  f = clean_window();
+  f.sample_flags_or = flag::kMissing | flag::kLate;  // LATE alone does not degrade
+  v = core::judge(S::kRunning, f, 0, 500);
+  EXPECT_EQ(v.cause.reason, R::kSampleFlags);
+  EXPECT_EQ(v.cause.flags, flag::kMissing);
+  f = clean_window();
+  f.clock_hold = true;
+  EXPECT_EQ(core::judge(S::kRunning, f, 0, 500).cause.reason, R::kClockHold);
+  v = core::judge(S::kRunning, clean_window(), 612, 500);
+  EXPECT_EQ(v.state, S::kFault);
+  EXPECT_EQ(v.cause.reason, R::kNoSamples);
+  EXPECT_EQ(v.cause.value, 612);
+  EXPECT_EQ(v.cause.threshold, 500);
+  f = clean_window();
+  f.bus_state = drivers::BusState::kOff;
+  v = core::judge(S::kRunning, f, 0, 500);
+  EXPECT_EQ(v.cause.reason, R::kBusDown);
+  EXPECT_EQ(v.cause.value, static_cast<std::int64_t>(drivers::BusState::kOff));
+  f = clean_window();
+  f.all_homed = false;  // homing: the homed count says it
+  v = core::judge(S::kRunning, f, 0, 500);
+  EXPECT_EQ(v.state, S::kHoming);
+  EXPECT_EQ(v.cause.reason, R::kNone);
+}
+
+// Held in degraded by the hysteresis, the state says it is recovering, how
+// far, and from what.
+TEST(ServiceStateMachine, AHeldDegradedStateSaysItIsRecoveringAndFromWhat) {
+  using S = core::ServiceState;
+  core::ServiceStateMachine machine({});
+  core::WindowFacts dirty = clean_window();
+  dirty.overruns = 4;
+  S s = machine.next(S::kRunning, dirty, 0);
+  ASSERT_EQ(s, S::kDegraded);
+  EXPECT_EQ(machine.cause().reason, core::StateReason::kOverruns);
+  for (int i = 1; i <= 3; ++i) s = machine.next(s, clean_window(), 0);
+  ASSERT_EQ(s, S::kDegraded);
+  EXPECT_EQ(machine.cause().reason, core::StateReason::kRecovering);
+  EXPECT_EQ(machine.cause().value, 3);
+  EXPECT_EQ(machine.cause().threshold, 10);
+  EXPECT_EQ(machine.cause().was, core::StateReason::kOverruns);
+}
+
+// The cause for people, with flags by name; allocation-free (the loop writes it).
+TEST(StateCause, IsDescribedWithItsThresholdAndFlagNamesWithoutAllocating) {
+  using R = core::StateReason;
+  const auto cause = [](R r, std::int64_t value, std::int64_t threshold) {
+    core::StateCause c;
+    c.reason = r;
+    c.value = value;
+    c.threshold = threshold;
+    c.window_ns = 100 * kMs;
+    return c;
+  };
+  core::StateCause overruns = cause(R::kOverruns, 60, 0);
+  overruns.also = 1U << static_cast<unsigned>(R::kPublishFailures);
+  core::StateCause joint = cause(R::kJointFault, 2, 0);
+  joint.joint = 4;
+  joint.flags = core::joint_flag::kStale | core::joint_flag::kHeld;
+  core::StateCause samples = cause(R::kSampleFlags, 0, 0);
+  samples.flags = flag::kMissing | flag::kSeqGap;
+  core::StateCause recovering = cause(R::kRecovering, 3, 10);
+  recovering.was = R::kOverruns;
+  core::StateCause bus = cause(R::kBusDown, static_cast<std::int64_t>(drivers::BusState::kOff), 0);
+  const std::pair<core::StateCause, std::string> expected[] = {
+      {overruns,
+       "60 overruns in the last 0.1 s window (threshold: more than 0) (also PUBLISH_FAILURES)"},
+      {joint,
+       "joint elbow_flexion STALE|HELD and 1 more joint(s) in the last 0.1 s window (threshold: "
+       "any fault flag)"},
+      {samples, "samples flagged MISSING|SEQ_GAP in the last 0.1 s window (threshold: any)"},
+      {cause(R::kPublishFailures, 7, 0),
+       "7 messages not published in the last 0.1 s window (threshold: more than 0)"},
+      {cause(R::kOverruns, 1, 0), "1 overrun in the last 0.1 s window (threshold: more than 0)"},
+      {cause(R::kNoSamples, 612, 500), "no sample for 612 ms (threshold 500 ms)"},
+      {bus, "bus OFF: no frame can arrive"},
+      {cause(R::kForeignRun, 0, 0),
+       "another run publishes on these channels (threshold: any status heard)"},
+      {cause(R::kClockHold, 0, 0), "clock unsynchronised under clock.require_sync: hold"},
+      {recovering, "recovering from OVERRUNS: 3 of 10 clean windows in a row"},
+      {cause(R::kNone, 0, 0), ""},
+  };
+  for (const auto& [c, text] : expected) {
+    char out[256];
+    std::size_t n = 0;
+    {
+      test::AllocationScope scope;
+      n = core::describe_cause(c, "elbow_flexion", out, sizeof out);
+      EXPECT_EQ(scope.count(), 0u);
+    }
+    EXPECT_EQ(std::string(out), text);
+    EXPECT_EQ(n, text.size());
+  }
+  char small[16];
+  EXPECT_EQ(core::describe_cause(overruns, "", small, sizeof small), 15u);
+  EXPECT_EQ(std::string(small), "60 overruns in ");
+  EXPECT_EQ(core::reason_name(R::kJointFault), "JOINT_FAULT");
+}
+
 TEST(MessageEncoder, PalmFirstThenJointsThenRawAllocatingNothing) {
   const auto cfg = sim_config();
   const auto acq_config = core::make_acquisition_config(cfg);
@@ -323,11 +452,8 @@ TEST(StatusAssembler, AWindowBecomesAStatusAndTheNextWindowStartsEmpty) {
   EXPECT_DOUBLE_EQ(s.utime_correction_us, 2.5);
   EXPECT_EQ(s.clock_steps, 1);
   EXPECT_EQ(s.joint_flags[1], static_cast<std::int32_t>(core::joint_flag::kGlitch));
-  char expected[160];
-  std::snprintf(expected, sizeof(expected),
-                "homing: 0/6 homed, 0.0%% valid, 3 overruns; joint %s flags 0x%x",
-                settings.joint_names[1].c_str(), core::joint_flag::kGlitch);
-  EXPECT_EQ(s.message, expected);
+  EXPECT_EQ(s.message, "HOMING: 0/6 homed, 0.0% valid, 3 overruns since start; joint " +
+                           settings.joint_names[1] + " GLITCH");
   // The next window: only its own cycles and its own overruns.
   status.count_cycle(core::CycleResult{}, true, false, 0, 1);
   end.overruns = 3;
@@ -342,6 +468,22 @@ TEST(StatusAssembler, AWindowBecomesAStatusAndTheNextWindowStartsEmpty) {
   EXPECT_EQ(status.message().foreign_run_id, 0x0123456789abcdef);
   EXPECT_NE(status.message().message.find("ANOTHER RUN 0123456789abcdef"), std::string::npos)
       << status.message().message;
+  // Its samples flagged: degraded, the reason first, the other one along.
+  core::CycleResult foreign;
+  foreign.sample_flags = flag::kForeignRun;
+  end.overruns = 5;
+  end.now_mono_ns = 1100 * kMs;
+  {
+    test::AllocationScope scope;
+    status.count_cycle(foreign, true, false, 1050 * kMs, 1050 * kMs);
+    EXPECT_EQ(status.close_window(core::ServiceState::kHoming, end), core::ServiceState::kDegraded);
+    EXPECT_EQ(scope.count(), 0u);
+  }
+  EXPECT_EQ(status.cause().reason, core::StateReason::kForeignRun);
+  EXPECT_EQ(status.message().message,
+            "DEGRADED: another run publishes on these channels (threshold: any status heard) (also "
+            "OVERRUNS); 0/6 homed, 0.0% valid, 5 overruns since start; ANOTHER RUN "
+            "0123456789abcdef on these channels");
 }
 
 TEST(EventRing, AFullRingDropsAndCounts) {
@@ -373,6 +515,24 @@ TEST(ConfigHandover, TheLoopTakesTheLatestStagedConfiguration) {
   EXPECT_EQ(taken, &handover.active());
   EXPECT_DOUBLE_EQ(handover.active().rig.singularity_threshold, 3.0);
   EXPECT_EQ(handover.take_staged(), nullptr);
+}
+
+// A configuration staged and replaced before the loop took it: the loop goes
+// straight from the active one to the latest, which starts the new segment
+// the skipped one would have.
+TEST(ConfigHandover, ASkippedConfigurationHandsOnItsNewSegment) {
+  core::ConfigHandover handover(std::make_unique<core::PipelineConfig>());
+  auto marked = std::make_unique<core::PipelineConfig>();
+  marked->new_segment = true;
+  handover.stage(std::move(marked));
+  handover.stage(std::make_unique<core::PipelineConfig>());
+  const core::PipelineConfig* taken = handover.take_staged();
+  ASSERT_NE(taken, nullptr);
+  EXPECT_TRUE(taken->new_segment);
+  handover.stage(std::make_unique<core::PipelineConfig>());
+  taken = handover.take_staged();
+  ASSERT_NE(taken, nullptr);
+  EXPECT_FALSE(taken->new_segment);
 }
 
 // status_t names the files in effect: cut to its limits by

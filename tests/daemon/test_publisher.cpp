@@ -285,15 +285,17 @@ TEST(Publisher, TracksAFailureEpisodeAndReopensTheTransportWhileItLasts) {
     EXPECT_EQ(h.failures, 10);
     EXPECT_EQ(h.last_errno, ENETUNREACH);
     EXPECT_EQ(h.recoveries, 0);
-    // Persisting: re-created after 1 s (the thread looks every 50 ms).
+    // Persisting: re-created after 1 s (the thread looks every 50 ms), not
+    // before; a loaded machine may make it later (60 s only guards a hang),
+    // and this thread may see a second one (backoff: 2 s after the first).
     const auto t0 = std::chrono::steady_clock::now();
     while (sink->reopens.load() == 0 &&
-           std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5)) {
+           std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60)) {
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
     EXPECT_GE(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(800));
-    EXPECT_EQ(sink->reopens.load(), 1);
-    EXPECT_EQ(publisher.health().reopens, 1);
+    EXPECT_GE(sink->reopens.load(), 1);
+    EXPECT_EQ(publisher.health().reopens, sink->reopens.load());
 
     sink->refuse = false;
     send_one(publisher, 12);

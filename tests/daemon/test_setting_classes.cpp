@@ -2,13 +2,17 @@
 // restart-only (settings_of), settings are compared by value, and each
 // reproduction of issue 15.4 (lock_memory, fault_after_ms, status_rate_hz,
 // publish_raw, a renamed joint, logging.level) is a change reload reports.
+// The declarations (setting_list.hpp) against what users read: every key of
+// config/*.yaml is declared, and the table in docs/operations.md is theirs.
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <set>
+#include <sstream>
 
 #include "exodaq/config/content_hash.hpp"
 #include "exodaq/config/service_config.hpp"
@@ -95,6 +99,20 @@ TEST(SettingClasses, EverySettingPrintConfigShowsIsClassedOnce) {
     EXPECT_TRUE(in_yaml) << key << " classed but not shown by --print-config";
   }
   EXPECT_GE(classed.size(), 60U);
+  // In --print-config's order: reload's messages list changes as it shows them.
+  std::vector<std::string> printed;
+  std::istringstream yaml(to_yaml(c));
+  for (std::string line; std::getline(yaml, line);) {
+    const auto colon = line.find(':');
+    if (line.empty() || line[0] == ' ' || line[0] == '#' || colon == std::string::npos) continue;
+    printed.push_back(line.substr(0, colon));
+  }
+  std::vector<std::string> sections;
+  for (const auto& s : settings_of(c)) {
+    const std::string top = s.key.substr(0, s.key.find_first_of(".["));
+    if (sections.empty() || sections.back() != top) sections.push_back(top);
+  }
+  EXPECT_EQ(sections, printed);
 }
 
 TEST(SettingClasses, TheIssueReproductionsAreEachReported) {
@@ -137,6 +155,30 @@ TEST(SettingClasses, TheIssueReproductionsAreEachReported) {
   EXPECT_NE(describe_changes(changes).find("loop.lock_memory (false -> true)"), std::string::npos);
 }
 
+// Which reloads start a new segment (SAMPLE_NEW_SEGMENT): those that change
+// how counts become angles or angles the palm pose, and no other.
+TEST(SettingClasses, ANewSegmentComesWithTheCalibrationModelOrEncoderGeometry) {
+  const std::string base = sim_text();
+  const ServiceConfig before = load(base);
+  const auto segment = [&before](const std::string& text) {
+    return starts_new_segment(compare_settings(before, load(text)));
+  };
+  const std::string cal = exodaq::test::make_temp_dir("segment") + "/calibration.yaml";
+  std::ofstream(cal) << replaced(read_file(kConfigDir + "calibration/sim.yaml"),
+                                 "encoder_offsets_deg: [49,", "encoder_offsets_deg: [79,");
+  EXPECT_TRUE(segment(replaced(base, "calibration: calibration/sim.yaml", "calibration: " + cal)));
+  EXPECT_TRUE(segment(replaced(base, "decoding: 4 ", "decoding: 2 ")));
+  EXPECT_TRUE(segment(replaced(base, "{channel: 3, direction: -1,", "{channel: 3, direction: 1,")));
+  EXPECT_TRUE(segment(replaced(base, "{channel: 0, direction: 1, gear_ratio: 1,",
+                               "{channel: 0, direction: 1, gear_ratio: 2,")));
+  EXPECT_FALSE(segment(base));
+  EXPECT_FALSE(segment(replaced(base, "level: info", "level: debug")));
+  EXPECT_FALSE(segment(replaced(base, "stale_ms: 20", "stale_ms: 30")));
+  EXPECT_FALSE(segment(replaced(base, "max_speed_rad_s: 0.64}", "max_speed_rad_s: 0.7}")));
+  // Restart-only changes apply nothing, so they start nothing.
+  EXPECT_FALSE(segment(replaced(base, "lock_memory: false", "lock_memory: true")));
+}
+
 TEST(SettingClasses, ComparedByValueNotByText) {
   const std::string base = sim_text();
   // The same values spelled differently, and a comment: only the file's hash differs.
@@ -157,4 +199,88 @@ TEST(SettingClasses, NumbersInTheirShortestExactForm) {
   EXPECT_EQ(setting_number(1e-6), "1e-06");
   EXPECT_EQ(std::stod(setting_number(0.1 + 0.2)), 0.1 + 0.2);
   EXPECT_EQ(setting_quoted("a\"b\\c\n"), "\"a\\\"b\\\\c\\x0a\"");
+}
+
+namespace {
+// A leaf key with its joint index made generic: "encoders.joints[].channel".
+std::string generic_key(const std::string& key) {
+  return std::regex_replace(key, std::regex(R"(\[[0-9]+\])"), "[]");
+}
+}  // namespace
+
+// Every key the shipped configurations write is a declared setting (or names
+// a file, or lies in the source section its backend declares), and every
+// declared setting is in the docs' table.
+TEST(SettingDeclarations, EveryKeyOfTheShippedConfigsIsDeclared) {
+  std::set<std::string> declared;
+  for (const auto& s : settings_of(load(sim_text()))) declared.insert(generic_key(s.key));
+  int files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(kConfigDir)) {
+    if (entry.path().extension() != ".yaml") continue;
+    ++files;
+    std::set<std::string> written;
+    leaves(YAML::LoadFile(entry.path().string()), "", written);
+    for (const auto& key : written) {
+      if (key == "model" || key == "calibration" || key.rfind("source.", 0) == 0) continue;
+      EXPECT_EQ(declared.count(generic_key(key)), 1U)
+          << entry.path().filename().string() << ": " << key << " is not declared";
+    }
+    // Each loads: its values obey the declarations' rules.
+    EXPECT_NO_THROW(load_service_config(entry.path().string())) << entry.path();
+  }
+  EXPECT_GE(files, 3);
+}
+
+TEST(SettingDeclarations, TheDocsTableIsTheDeclarations) {
+  const std::string doc = read_file(std::string(EXODAQ_SOURCE_DIR) + "/docs/operations.md");
+  const std::string begin = "<!-- settings table: generated";
+  const std::string end = "<!-- end of settings table -->";
+  const auto from = doc.find(begin);
+  ASSERT_NE(from, std::string::npos) << "docs/operations.md has no '" << begin << "' marker";
+  const auto table_from = doc.find('\n', from) + 1;
+  const auto to = doc.find(end, table_from);
+  ASSERT_NE(to, std::string::npos) << "docs/operations.md has no '" << end << "' marker";
+  EXPECT_EQ(doc.substr(table_from, to - table_from), settings_table())
+      << "regenerate it: cmake --build build --target docs-settings-table";
+  // One row per declared setting, a joint's once.
+  std::set<std::string> declared;
+  for (const auto& s : settings_of(load(sim_text()))) declared.insert(generic_key(s.key));
+  for (const auto& key : declared) {
+    const bool file_fact = key == "source" || key.rfind("config.", 0) == 0 ||
+                           key.rfind("model.", 0) == 0 || key.rfind("calibration.", 0) == 0;
+    EXPECT_EQ(file_fact, settings_table().find("| `" + key + "` |") == std::string::npos) << key;
+  }
+}
+
+// The rule a declaration gives is the one the parser applies, in the words
+// the table shows.
+TEST(SettingDeclarations, TheParserAppliesTheDeclaredRules) {
+  const std::string base = sim_text();
+  const auto error = [&](const std::string& from, const std::string& to) {
+    try {
+      load(replaced(base, from, to));
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(accepted)");
+  };
+  const std::string table = settings_table();
+  EXPECT_NE(error("velocity_window: 21", "velocity_window: 65")
+                .find("encoders.velocity_window must be between 2 and 64"),
+            std::string::npos);
+  EXPECT_NE(table.find("| `encoders.velocity_window` | integer | 21 | must be between 2 and 64 |"),
+            std::string::npos)
+      << table;
+  EXPECT_NE(error("step_threshold_ms: 2", "step_threshold_ms: 0")
+                .find("clock.step_threshold_ms must be positive"),
+            std::string::npos);
+  // Written in ms, kept in ns.
+  EXPECT_EQ(load(replaced(base, "step_threshold_ms: 2", "step_threshold_ms: 2.5"))
+                .clock.step_threshold_ns,
+            2'500'000);
+  EXPECT_NE(error("decoding: 4 ", "decoding: 3 ").find("encoders.decoding must be 1, 2 or 4"),
+            std::string::npos);
+  EXPECT_EQ(load(base).clock.require_sync, RequireSync::kIgnore);
+  EXPECT_EQ(load(replaced(base, "require_sync: ignore", "require_sync: hold")).clock.require_sync,
+            RequireSync::kHold);
 }

@@ -355,6 +355,52 @@ TEST_F(Decoder, ResyncAfterSilence) {
   EXPECT_EQ(dec.stats().out_of_order, 0);
 }
 
+// A board held off between the two frames of cycle 118 (the VM's free-running
+// stage under host load: COUNTS_B 185 ms after COUNTS_A). The second half
+// still belongs to cycle 118 however long the silence: it completes the cycle
+// being assembled, or, once the reader flushed the first half as PARTIAL, it
+// is too late for it (out of order). Either way cycle 118 is one sample, never
+// a second one opened by the silence's resynchronisation.
+TEST_F(Decoder, TheOtherHalfAfterASilenceCompletesItsCycle) {
+  cycle(117, 100 * kMs);
+  take();
+  dec.on_frame(counts(0, 118, 110 * kMs));
+  dec.on_frame(counts(1, 118, 295 * kMs));
+  const EncoderSample s = take();
+  EXPECT_EQ(s.board_seq, 118);
+  EXPECT_EQ(s.flags, 0U);
+  EXPECT_EQ(s.channel_fresh, 0x3FU);
+  EXPECT_EQ(s.mono_ns, 295 * kMs);
+  EXPECT_EQ(dec.queued(), 0);
+  EXPECT_FALSE(dec.has_partial());
+  EXPECT_EQ(dec.detail().resyncs, 0);
+  EXPECT_EQ(dec.stats().seq_gaps, 0);
+}
+
+TEST_F(Decoder, TheOtherHalfAfterASilenceIsLateForItsFlushedCycle) {
+  cycle(117, 100 * kMs);
+  take();
+  dec.on_frame(counts(0, 118, 110 * kMs));
+  EncoderSample s;
+  ASSERT_TRUE(dec.flush(s));  // the reader's deadline: PARTIAL
+  EXPECT_EQ(s.board_seq, 118);
+  EXPECT_EQ(s.flags, flag::kPartial);
+  dec.on_frame(counts(1, 118, 295 * kMs));  // 185 ms later
+  EXPECT_EQ(dec.queued(), 0);
+  EXPECT_FALSE(dec.has_partial());
+  EXPECT_FALSE(dec.flush(s));  // no second sample of cycle 118
+  EXPECT_EQ(dec.stats().out_of_order, 1);
+  EXPECT_EQ(dec.detail().resyncs, 0);
+  cycle(119, 300 * kMs);
+  const EncoderSample n = take();
+  EXPECT_EQ(n.board_seq, 119);
+  EXPECT_EQ(n.flags, flag::kOutOfOrder);
+  // A board that restarts after the silence with another seq still resyncs.
+  cycle(3, 900 * kMs);
+  EXPECT_EQ(take().flags, flag::kSeqGap);
+  EXPECT_EQ(dec.detail().resyncs, 1);
+}
+
 TEST_F(Decoder, ResyncAfterConsecutiveRejectsWithoutStamps) {
   for (int k = 100; k < 103; ++k) cycle(k, 0);
   for (int k = 0; k < 3; ++k) take();

@@ -205,49 +205,49 @@ TEST(CanCodec, ErrorFlagWinsOverIdAndOtherFlags) {
 }
 
 TEST(Unwrap16, SmallSteps) {
-  EXPECT_EQ(can::unwrap16(0, 0), 0);
-  EXPECT_EQ(can::unwrap16(0, 5), 5);
-  EXPECT_EQ(can::unwrap16(0, 0xFFFB), -5);
-  EXPECT_EQ(can::unwrap16(100000, static_cast<std::uint16_t>(100003 & 0xFFFF)), 100003);
-  EXPECT_EQ(can::unwrap16(-100000, static_cast<std::uint16_t>(-100010 & 0xFFFF)), -100010);
+  EXPECT_EQ(exodaq::unwrap16(0, 0), 0);
+  EXPECT_EQ(exodaq::unwrap16(0, 5), 5);
+  EXPECT_EQ(exodaq::unwrap16(0, 0xFFFB), -5);
+  EXPECT_EQ(exodaq::unwrap16(100000, static_cast<std::uint16_t>(100003 & 0xFFFF)), 100003);
+  EXPECT_EQ(exodaq::unwrap16(-100000, static_cast<std::uint16_t>(-100010 & 0xFFFF)), -100010);
 }
 
 TEST(CountDelta16, SmallestSignedStepAcrossTheWrap) {
-  EXPECT_EQ(can::count_delta16(0xFFFE, 3), 5);
-  EXPECT_EQ(can::count_delta16(3, 0xFFFE), -5);
-  EXPECT_EQ(can::count_delta16(0, 0x7FFF), 32767);
-  EXPECT_EQ(can::count_delta16(0, 0x8000), -32768);
-  EXPECT_EQ(can::count_delta16(1234, 1234), 0);
+  EXPECT_EQ(exodaq::count_delta16(0xFFFE, 3), 5);
+  EXPECT_EQ(exodaq::count_delta16(3, 0xFFFE), -5);
+  EXPECT_EQ(exodaq::count_delta16(0, 0x7FFF), 32767);
+  EXPECT_EQ(exodaq::count_delta16(0, 0x8000), -32768);
+  EXPECT_EQ(exodaq::count_delta16(1234, 1234), 0);
 }
 
 TEST(Unwrap16, AcrossTheWrapBothDirections) {
-  EXPECT_EQ(can::unwrap16(65530, 4), 65540);       // up through 0xFFFF → 0
-  EXPECT_EQ(can::unwrap16(65540, 0xFFFA), 65530);  // back down
-  EXPECT_EQ(can::unwrap16(-1, 1), 1);
-  EXPECT_EQ(can::unwrap16(1, 0xFFFF), -1);
-  EXPECT_EQ(can::unwrap16(32767, 0x8000), 32768);  // int16 overflow is no wrap of the count
-  EXPECT_EQ(can::unwrap16(-32768, 0x7FFF), -32769);
+  EXPECT_EQ(exodaq::unwrap16(65530, 4), 65540);       // up through 0xFFFF → 0
+  EXPECT_EQ(exodaq::unwrap16(65540, 0xFFFA), 65530);  // back down
+  EXPECT_EQ(exodaq::unwrap16(-1, 1), 1);
+  EXPECT_EQ(exodaq::unwrap16(1, 0xFFFF), -1);
+  EXPECT_EQ(exodaq::unwrap16(32767, 0x8000), 32768);  // int16 overflow is no wrap of the count
+  EXPECT_EQ(exodaq::unwrap16(-32768, 0x7FFF), -32769);
   // Walk many revolutions of the 16-bit counter in steps of 30 000 both ways.
   std::int64_t up = 0;
   std::int64_t down = 0;
   for (int i = 1; i <= 50; ++i) {
     const std::int64_t truth = static_cast<std::int64_t>(i) * 30000;
-    up = can::unwrap16(up, static_cast<std::uint16_t>(truth & 0xFFFF));
-    down = can::unwrap16(down, static_cast<std::uint16_t>((-truth) & 0xFFFF));
+    up = exodaq::unwrap16(up, static_cast<std::uint16_t>(truth & 0xFFFF));
+    down = exodaq::unwrap16(down, static_cast<std::uint16_t>((-truth) & 0xFFFF));
     ASSERT_EQ(up, truth);
     ASSERT_EQ(down, -truth);
   }
 }
 
 TEST(Unwrap16, LimitsAtPlusMinus32767) {
-  EXPECT_EQ(can::unwrap16(0, 32767), 32767);
-  EXPECT_EQ(can::unwrap16(0, static_cast<std::uint16_t>(-32767 & 0xFFFF)), -32767);
-  EXPECT_EQ(can::unwrap16(1000, static_cast<std::uint16_t>((1000 + 32767) & 0xFFFF)), 33767);
-  EXPECT_EQ(can::unwrap16(1000, static_cast<std::uint16_t>((1000 - 32767) & 0xFFFF)), -31767);
+  EXPECT_EQ(exodaq::unwrap16(0, 32767), 32767);
+  EXPECT_EQ(exodaq::unwrap16(0, static_cast<std::uint16_t>(-32767 & 0xFFFF)), -32767);
+  EXPECT_EQ(exodaq::unwrap16(1000, static_cast<std::uint16_t>((1000 + 32767) & 0xFFFF)), 33767);
+  EXPECT_EQ(exodaq::unwrap16(1000, static_cast<std::uint16_t>((1000 - 32767) & 0xFFFF)), -31767);
   // A step of exactly 32768 is ambiguous and resolves to −32768.
-  EXPECT_EQ(can::unwrap16(0, 0x8000), -32768);
+  EXPECT_EQ(exodaq::unwrap16(0, 0x8000), -32768);
   // Beyond ±32767 the unwrap aliases: +32769 reads as −32767.
-  EXPECT_EQ(can::unwrap16(0, static_cast<std::uint16_t>(32769)), -32767);
+  EXPECT_EQ(exodaq::unwrap16(0, static_cast<std::uint16_t>(32769)), -32767);
 }
 
 TEST(SeqDelta, WrapsAt256) {

@@ -173,8 +173,10 @@ int main(int argc, char** argv) {
     m.present = 0;
     m.source_flags = 1;
     write(d, "missing", encoded(m));
+    // Cut the last five bytes. erase, not resize(size() - 5): GCC 12 at -O1
+    // with ASan cannot prove size() >= 5 and fails -Werror=stringop-overflow.
     auto t = encoded(raw_message(44));
-    t.resize(t.size() - 5);
+    t.erase(t.end() - 5, t.end());
     write(d, "truncated", t);
   }
 

@@ -1,6 +1,7 @@
 // A foreign publisher for tests: status_t messages with a given run id and
-// rig "fake-rig" on one channel, at a rate, until SIGTERM or a duration.
-//   exodaq_test_status_publisher URL CHANNEL RUN_ID_HEX RATE_HZ SECONDS
+// rig ("fake-rig" unless given) on one channel, at a rate, until SIGTERM or a
+// duration; seq counts the messages from 0.
+//   exodaq_test_status_publisher URL CHANNEL RUN_ID_HEX RATE_HZ SECONDS [RIG]
 #include <lcm/lcm-cpp.hpp>
 
 #include <chrono>
@@ -17,8 +18,8 @@ volatile std::sig_atomic_t g_stop = 0;
 }
 
 int main(int argc, char** argv) {
-  if (argc != 6) {
-    std::fprintf(stderr, "usage: %s URL CHANNEL RUN_ID_HEX RATE_HZ SECONDS\n", argv[0]);
+  if (argc != 6 && argc != 7) {
+    std::fprintf(stderr, "usage: %s URL CHANNEL RUN_ID_HEX RATE_HZ SECONDS [RIG]\n", argv[0]);
     return 2;
   }
   std::signal(SIGTERM, [](int) { g_stop = 1; });
@@ -27,7 +28,7 @@ int main(int argc, char** argv) {
   const std::string channel = argv[2];
   exodaq::status_t st{};
   st.run_id = static_cast<std::int64_t>(std::strtoull(argv[3], nullptr, 16));
-  st.rig = "fake-rig";
+  st.rig = argc == 7 ? argv[6] : "fake-rig";
   st.source = "fake";
   st.state = exodaq::status_t::STATE_RUNNING;
   const auto period = std::chrono::duration<double>(1.0 / std::atof(argv[4]));

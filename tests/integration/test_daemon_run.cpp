@@ -25,6 +25,7 @@
 #include "process.hpp"
 #include "recording.hpp"
 #include "sim_daemon.hpp"
+#include "status_wait.hpp"
 
 using namespace exodaq;
 using namespace std::chrono_literals;
@@ -41,9 +42,16 @@ struct DaemonRecording {
   int exit_code = -1;
   double stop_ms = 0;
   std::string daemon_err;
+  test::DaemonTotals totals;        // the daemon's own account
+  std::int64_t recorder_drops = 0;  // datagrams the kernel dropped on the recorder's socket
+  std::int64_t logger_drops = 0;    // ... on lcm-logger's (it also drops in LCM's queue, uncounted)
 };
 
-// One run shared by the tests below (a few seconds of real time).
+constexpr int kPort = 7667;
+
+// One run shared by the tests below: until the daemon has used seq 12000
+// (12 s of the rig's time: the simulated operator homes joint by joint in
+// ~10 s), however long the machine takes.
 const DaemonRecording& the_run() {
   static DaemonRecording run = [] {
     DaemonRecording r;
@@ -56,28 +64,37 @@ const DaemonRecording& the_run() {
     test::Process logger(
         test::lcm_logger_argv(test::kRecordUrl, r.prefix + ".*", r.dir + "/run.lcm"),
         r.dir + "/logger.out", r.dir + "/logger.err");
-    std::this_thread::sleep_for(500ms);  // both subscribed before the first message
+    // Both subscribed before the first message.
+    EXPECT_TRUE(test::wait_for_udp_socket(recorder.pid(), kPort));
+    EXPECT_TRUE(test::wait_for_udp_socket(logger.pid(), kPort));
     {
       test::Process daemon({EXODAQD, "--config", r.config}, r.dir + "/daemon.out",
                            r.dir + "/daemon.err");
-      std::this_thread::sleep_for(12000ms);  // the simulated operator homes joint by joint in ~10 s
+      EXPECT_TRUE(test::wait_for_seq(kUrl, r.prefix, 12'000))
+          << "the daemon never reached seq 12000";
       const auto t0 = std::chrono::steady_clock::now();
       daemon.signal(SIGTERM);
-      const auto code = daemon.wait(10s);
+      const auto code = daemon.wait(20s);
       r.stop_ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       r.exit_code = code ? *code : -1;
     }
-    std::this_thread::sleep_for(500ms);
+    std::this_thread::sleep_for(500ms);  // the last datagrams in flight
+    r.recorder_drops = test::udp_drops(recorder.pid());
+    r.logger_drops = test::udp_drops(logger.pid());
     recorder.signal(SIGTERM);
     logger.signal(SIGINT);
     recorder.wait(5s);
     logger.wait(5s);
     r.daemon_err = test::read_file(r.dir + "/daemon.err");
+    r.totals = test::daemon_totals(r.daemon_err);
     r.recorded = test::read_recorder_file(r.dir + "/recorder.bin");
     r.logged = test::read_lcm_log(r.dir + "/run.lcm");
-    std::printf("run dir %s: %zu recorded, %zu logged, SIGTERM to exit %.1f ms\n", r.dir.c_str(),
-                r.recorded.size(), r.logged.size(), r.stop_ms);
+    std::printf(
+        "run dir %s: %zu recorded (socket drops %lld), %zu logged (socket drops %lld), SIGTERM "
+        "to exit %.1f ms\n",
+        r.dir.c_str(), r.recorded.size(), static_cast<long long>(r.recorder_drops), r.logged.size(),
+        static_cast<long long>(r.logger_drops), r.stop_ms);
     return r;
   }();
   return run;
@@ -97,17 +114,23 @@ TEST(DaemonRun, StopsCleanlyOnSigtermAfterAFinalStatus) {
   const auto ch = by_channel(r.recorded);
   ASSERT_TRUE(ch.count(r.prefix + "EXO_STATUS"));
   const auto last = test::decode<exodaq::status_t>(ch.at(r.prefix + "EXO_STATUS").back()->data);
-  EXPECT_EQ(static_cast<int>(last.state), int{exodaq::status_t::STATE_STOPPING});
+  // The final status is the last datagram: only a drop on the recorder's
+  // socket (counted) excuses its absence.
+  if (r.recorder_drops == 0) {
+    EXPECT_EQ(static_cast<int>(last.state), int{exodaq::status_t::STATE_STOPPING});
+  }
   EXPECT_EQ(last.rig, "sim-macaque");
   EXPECT_NE(r.daemon_err.find("SIGTERM received"), std::string::npos);
 }
 
+// The recorder (unbounded LCM queue, 4 MiB socket buffer) loses a datagram
+// only when the kernel drops it on its socket, which the kernel counts
+// (r.recorder_drops): every cycle the daemon ran reached it but those.
 TEST(DaemonRun, SequenceRateAndTimestampsHold) {
   const DaemonRecording& r = the_run();
   const auto ch = by_channel(r.recorded);
   const auto& joints = ch.at(r.prefix + "EXO_JOINT_STATE");
-  ASSERT_GT(joints.size(), 3000u);
-  const auto status = test::decode<exodaq::status_t>(ch.at(r.prefix + "EXO_STATUS").back()->data);
+  ASSERT_FALSE(joints.empty());
   std::int64_t prev_seq = -1;
   std::int64_t prev_utime = 0;
   std::int64_t prev_mono = 0;
@@ -129,14 +152,20 @@ TEST(DaemonRun, SequenceRateAndTimestampsHold) {
   }
   const auto first = test::decode<exodaq::joint_state_t>(joints.front()->data);
   const auto last = test::decode<exodaq::joint_state_t>(joints.back()->data);
-  // >= 99.9 % of the cycles the daemon ran reached the subscriber.
-  EXPECT_GE(static_cast<double>(joints.size()), 0.999 * static_cast<double>(status.cycles))
-      << joints.size() << " of " << status.cycles;
-  // Every seq gap the subscriber saw is a deadline the daemon counted as
-  // skipped, apart from datagrams UDP itself may drop (within the 0.1 %).
-  EXPECT_LE(gaps - status.overruns,
-            static_cast<std::int64_t>(0.001 * static_cast<double>(status.cycles)))
-      << "uncounted sequence gaps";
+  const test::DaemonTotals& t = r.totals;
+  // The daemon's account: seqs 0 ... cycles + overruns - 1, each a cycle run
+  // or a deadline skipped.
+  EXPECT_EQ(first.seq, 0);
+  EXPECT_LT(last.seq, t.cycles + t.overruns);
+  // Every cycle it ran reached the subscriber, but for what its publish path
+  // counted as refused or dropped and what the subscriber's own socket
+  // dropped: no message lost uncounted, none invented.
+  const std::int64_t lost = t.publish_failures + r.recorder_drops;
+  const std::int64_t not_received = t.cycles - static_cast<std::int64_t>(joints.size());
+  EXPECT_GE(not_received, 0);
+  EXPECT_LE(not_received, lost) << joints.size() << " of " << t.cycles;
+  // Every seq gap is a deadline the daemon counted as skipped, or one of those.
+  EXPECT_LE(gaps, t.overruns + lost) << "uncounted sequence gaps";
   // The rate, measured by sequence over the sample clock.
   const double rate = static_cast<double>(last.seq - first.seq) /
                       (static_cast<double>(last.mono_ns - first.mono_ns) * 1e-9);
@@ -147,8 +176,9 @@ TEST(DaemonRun, SequenceRateAndTimestampsHold) {
     const auto js = test::decode<exodaq::joint_state_t>(m->data);
     stamps[js.seq] = {js.utime, js.mono_ns};
   }
-  int matched = 0;
-  for (const auto* m : ch.at(r.prefix + "EXO_PALM_POSE")) {
+  const auto& palms = ch.at(r.prefix + "EXO_PALM_POSE");
+  std::int64_t matched = 0;
+  for (const auto* m : palms) {
     const auto p = test::decode<exodaq::palm_pose_t>(m->data);
     const auto it = stamps.find(p.seq);
     if (it == stamps.end()) continue;
@@ -156,10 +186,14 @@ TEST(DaemonRun, SequenceRateAndTimestampsHold) {
     ASSERT_EQ(p.mono_ns, it->second.second);
     ++matched;
   }
-  EXPECT_GT(matched, 3000);
-  std::printf("cycles %lld, received %zu, gaps %lld, overruns %lld, rate %.3f Hz\n",
-              static_cast<long long>(status.cycles), joints.size(), static_cast<long long>(gaps),
-              static_cast<long long>(status.overruns), rate);
+  // A palm pose without the joint state of its cycle: only where that joint
+  // state was dropped (below).
+  EXPECT_GT(matched, 0);
+  std::printf(
+      "cycles %lld, received %zu, gaps %lld, overruns %lld, socket drops %lld, rate %.3f Hz\n",
+      static_cast<long long>(t.cycles), joints.size(), static_cast<long long>(gaps),
+      static_cast<long long>(t.overruns), static_cast<long long>(r.recorder_drops), rate);
+  EXPECT_LE(static_cast<std::int64_t>(palms.size()) - matched, lost);
 }
 
 TEST(DaemonRun, AnglesMatchTheSimulatorTruthAndPalmMatchesForwardKinematics) {
@@ -213,9 +247,12 @@ TEST(DaemonRun, AnglesMatchTheSimulatorTruthAndPalmMatchesForwardKinematics) {
 }
 
 TEST(DaemonRun, LcmLoggerRecordedTheSameMessages) {
-  // Two independent UDP subscribers: each may lose a datagram under load, so
-  // messages are matched by (channel, seq); every message both have must be
-  // byte-identical and each must have >= 99.9 % of the other's.
+  // Two independent UDP subscribers: each may lose datagrams on a loaded
+  // machine, so messages are matched by (channel, seq) and every message both
+  // have must be byte-identical. What lcm-logger has and the recorder lacks
+  // is the recorder's own loss, which its socket's drop count bounds;
+  // lcm-logger's own loss (its kernel drops, and LCM's 30-message queue,
+  // which nobody counts) is reported.
   const DaemonRecording& r = the_run();
   const auto a = by_channel(r.recorded);
   const auto b = by_channel(r.logged);
@@ -231,16 +268,19 @@ TEST(DaemonRun, LcmLoggerRecordedTheSameMessages) {
     };
     std::map<std::int64_t, const test::RecordedMessage*> logged;
     for (const auto* m : b.at(channel)) logged[seq_of(m)] = m;
-    std::size_t common = 0;
+    std::int64_t common = 0;
     for (const auto* m : a.at(channel)) {
       const auto it = logged.find(seq_of(m));
       if (it == logged.end()) continue;
       ++common;
       ASSERT_EQ(m->data, it->second->data) << channel << " seq " << it->first;
     }
-    EXPECT_GE(static_cast<double>(common), 0.999 * static_cast<double>(a.at(channel).size()))
-        << channel;
-    EXPECT_GE(static_cast<double>(common), 0.999 * static_cast<double>(b.at(channel).size()))
-        << channel;
+    const auto recorded = static_cast<std::int64_t>(a.at(channel).size());
+    const auto by_logger = static_cast<std::int64_t>(b.at(channel).size());
+    EXPECT_GT(common, 0) << channel;
+    EXPECT_LE(by_logger - common, r.recorder_drops) << channel << ": the recorder lost more";
+    std::printf("%s: %lld recorded, %lld logged, %lld in both\n", channel.c_str(),
+                static_cast<long long>(recorded), static_cast<long long>(by_logger),
+                static_cast<long long>(common));
   }
 }

@@ -41,9 +41,11 @@ From the shell (a lab to try things in by hand; `down` removes it):
 import argparse
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 
 NAME_RE = re.compile(r"^exolab(\d+)x*-")
@@ -124,6 +126,7 @@ class NetLab:
         self.settle = settle
         self._made = []
         self._procs = []
+        self._run_dirs = {}
         try:
             self._build()
         except BaseException:
@@ -176,8 +179,23 @@ class NetLab:
     def command(self, host, argv):
         return ["ip", "netns", "exec", self.ns(host), *argv]
 
+    def run_dir(self, host):
+        """The host's own runtime directory (its /run): a network namespace
+        shares the file system, and exodaqd's instance lock lives there, so two
+        labs' rigs on the same channels must not meet in /run/exodaq."""
+        if host not in self._run_dirs:
+            self._run_dirs[host] = tempfile.mkdtemp(prefix=self.ns(host) + "-run-")
+        return self._run_dirs[host]
+
+    def host_env(self, host, env=None):
+        out = dict(os.environ if env is None else env)
+        out["RUNTIME_DIRECTORY"] = self.run_dir(host)
+        return out
+
     def popen(self, host, argv, **kw):
-        """Starts argv inside `host` (its own session, so close() can signal its group)."""
+        """Starts argv inside `host` (its own session, so close() can signal its
+        group), with RUNTIME_DIRECTORY set to the host's own."""
+        kw["env"] = self.host_env(host, kw.get("env"))
         p = subprocess.Popen(self.command(host, argv), start_new_session=True, **kw)
         self._procs.append(p)
         return p
@@ -185,6 +203,7 @@ class NetLab:
     def run(self, host, argv, **kw):
         kw.setdefault("capture_output", True)
         kw.setdefault("text", True)
+        kw["env"] = self.host_env(host, kw.get("env"))
         return subprocess.run(self.command(host, argv), **kw)
 
     # ---- the switch
@@ -238,6 +257,9 @@ class NetLab:
         for ns in reversed(self._made):
             remove_namespace(ns)
         self._made = []
+        for d in self._run_dirs.values():
+            shutil.rmtree(d, ignore_errors=True)
+        self._run_dirs = {}
 
     def __enter__(self):
         return self

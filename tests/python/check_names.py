@@ -55,7 +55,8 @@ def main(argv):
         if py != cpp:
             fail("%s(%r): C++ %r, Python %r" % (family, arg, cpp, py))
         checked[family] = checked.get(family, 0) + 1
-    py_kinds = [(k.type.__name__, k.base_channel) for k in exodaq.KINDS]
+    py_kinds = [(k.type.__name__, "%s %s" % (k.base_channel, "per_cycle" if k.per_cycle else "-"))
+                for k in exodaq.KINDS]
     if py_kinds != cpp_kinds:
         fail("kinds: C++ %s, Python %s" % (cpp_kinds, py_kinds))
     pkg = os.path.dirname(exodaq.__file__)
@@ -66,7 +67,7 @@ def main(argv):
         if not checked.get(family):
             fail("no %s lines from %s" % (family, argv[1]))
     print("kinds %s; %s: Python == C++" % (
-        ", ".join(b for _, b in py_kinds),
+        ", ".join(k.base_channel for k in exodaq.KINDS),
         ", ".join("%s %d" % (f, n) for f, n in sorted(checked.items()))))
     return 0
 

@@ -23,8 +23,8 @@ std::vector<std::int32_t> flag_values() {
 int main() {
   using namespace exodaq::msg;
   for (Kind k : kAllKinds) {
-    std::printf("kind %s %s\n", std::string(type_name(k)).c_str(),
-                std::string(base_channel(k)).c_str());
+    std::printf("kind %s %s %s\n", std::string(type_name(k)).c_str(),
+                std::string(base_channel(k)).c_str(), is_per_cycle(k) ? "per_cycle" : "-");
   }
   for (const char* text :
        {"joint_state", "JOINTS", "joint", "palm", "Pose", "palm_pose_t", "raw", "encoder",

@@ -95,6 +95,8 @@ std::uint64_t summary_digest(const ReplaySource& src, const std::string& path) {
   d.num(s.bad_lines);
   d.num(s.frames);
   d.num(s.duration_s);
+  d.num(s.damaged_stretches);
+  d.num(s.damaged_cycles);
   d.num(src.sample_count());
   for (const ReplayIssue& i : src.issues()) {
     d.num(i.line);
@@ -210,7 +212,9 @@ std::string write_lcm_session(const std::string& dir, const std::string& name, i
       log.push_back(bad);
       encoder_raw_t future = r;
       future.utime = INT64_MAX / 100;
-      log.push_back(event(raw_channel, future));
+      test::LogEvent damaged_utime = event(raw_channel, future);
+      damaged_utime.timestamp = r.utime;  // the recorder's own stamp stays plausible
+      log.push_back(damaged_utime);
     }
     if (k == cycles / 2) damage_at = log.size();
   }
@@ -324,19 +328,19 @@ void expect_golden(const std::string& path, const Golden& g) {
 TEST(ReplayStreaming, LcmSessionWithJointStateSameAsWholeFileLoad) {
   const std::string dir = test::make_temp_dir("replay-stream");
   expect_golden(write_lcm_session(dir, "js.lcm", 30000, true),
-                {29999, 5, 0x29678b004958f1a1ULL, 0xd56671f96c2f3c22ULL});
+                {29999, 5, 0xe0cbc86d6e9706a8ULL, 0xd56671f96c2f3c22ULL});
 }
 
 TEST(ReplayStreaming, LcmSessionWithoutJointStateSameAsWholeFileLoad) {
   const std::string dir = test::make_temp_dir("replay-stream");
   expect_golden(write_lcm_session(dir, "raw.lcm", 30000, false),
-                {29996, 5, 0x48cb5ddd13087ff6ULL, 0xe279f8c614906ac2ULL});
+                {29996, 5, 0x3c6a8ca5b6d8afffULL, 0xe279f8c614906ac2ULL});
 }
 
 TEST(ReplayStreaming, CandumpSessionSameAsWholeFileLoad) {
   const std::string dir = test::make_temp_dir("replay-stream");
   expect_golden(write_candump_session(dir, 12000),
-                {11997, 17, 0xf43cffe55b968dddULL, 0x2f1cc9e1e2b247f5ULL});
+                {11997, 17, 0x4a7e5e917394ffddULL, 0x2f1cc9e1e2b247f5ULL});
 }
 
 // A long session as the daemon publishes it, written fast: the raw channel

@@ -1,5 +1,6 @@
 // End to end, with real processes: exodaqd on the simulated rig recorded by
-// the real lcm-logger, then `exodaq replay` at --speed max must reproduce the
+// exodaq record (lcm-logger's format; lcm-logger itself is compared with it
+// in tests/record), then `exodaq replay` at --speed max must reproduce the
 // live joint_state_t and palm_pose_t messages exactly; two replays give the
 // same bytes; `exodaq export` and `exodaq plot` on the result.
 #include <gtest/gtest.h>
@@ -32,6 +33,7 @@
 #include "process.hpp"
 #include "replay_support.hpp"
 #include "sim_daemon.hpp"
+#include "status_wait.hpp"
 #include "synthetic.hpp"
 
 namespace exodaq::test {
@@ -41,9 +43,12 @@ namespace cal = exodaq::calibration;
 
 constexpr std::int32_t kSampleReplay = 1024;  // joint_state_t::SAMPLE_REPLAY
 constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
-// The least fraction of its 1 ms deadlines the live loop must run for the
-// suite's floors ("at least N cycles") to hold; set-up checks it.
-constexpr double kLeastKept = 0.25;
+constexpr int kPort = 7667;
+// The live run lasts until the daemon has used this seq: 16 s of the rig's
+// time, whatever the machine's speed. Long enough for the sim's homing sweeps
+// of all six joints (~10 s) and a few reaches after, past the last excerpt
+// (to seq 13700) and with the calibration markers (all joints homed).
+constexpr std::int64_t kLiveSeqs = 16'000;
 
 // One live recording shared by every test of the suite.
 struct Live {
@@ -53,21 +58,21 @@ struct Live {
   std::string log;
   std::string replay;  // exodaq replay --speed max of `log`
   std::string replay_out;
-  // Cycles the daemon ran and published that lcm-logger did not record (a
-  // datagram dropped on a loaded machine): the replay never sees them, so a
-  // velocity fit spanning one cannot match the live one (recorder_losses).
+  std::string daemon_log;
+  DaemonTotals totals;  // the daemon's own account of the run
+  // Seqs the daemon used without a cycle: the deadlines it skipped, each
+  // named in its log ("loop overrun at seq S: ..., K deadline(s) skipped"
+  // skips S-K ... S-1). Never published.
+  std::set<std::int64_t> skipped;
+  // Cycles the daemon ran that the recorder did not record on the raw channel:
+  // every seq from 0 to the last recorded that is neither recorded nor
+  // skipped. a recorder drops datagrams on a loaded machine (its socket's, counted); the replay
+  // never sees these cycles, so a velocity fit spanning one cannot match the live one
+  // (expect_same_cycles).
   std::set<std::int64_t> recorder_lost;
+  std::int64_t recorder_kernel_drops = 0;  // the recorder's socket, as the kernel counted
 };
 Live* g_live = nullptr;
-
-bool wait_for_file(const std::string& path, std::chrono::milliseconds timeout) {
-  const auto end = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < end) {
-    if (file_size(path) >= 0) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  return false;
-}
 
 RunResult exodaq(const std::vector<std::string>& args) {
   std::vector<std::string> argv{EXODAQ_TOOL};
@@ -75,28 +80,29 @@ RunResult exodaq(const std::vector<std::string>& args) {
   return run(argv, std::chrono::seconds(120));
 }
 
-// The seqs missing from the recording's encoder_raw_t that the daemon did
-// not skip: its log names every skip ("loop overrun at seq S: ..., K
-// deadline(s) skipped" skips S-K ... S-1).
-std::set<std::int64_t> recorder_losses(const std::string& log, const std::string& prefix,
-                                       const std::string& daemon_err) {
-  std::set<std::int64_t> recorded;
-  for (const auto& e : read_log(log)) {
-    if (e.channel != prefix + "EXO_ENCODER_RAW") continue;
-    encoder_raw_t m;
-    if (m.decode(e.data.data(), 0, static_cast<int>(e.data.size())) >= 0) recorded.insert(m.seq);
-  }
+// Every exodaq message begins with its fingerprint, utime, mono_ns and seq.
+std::int64_t seq_of(const LogEvent& e) {
+  std::int64_t v = 0;
+  for (std::size_t i = 0; i < 8 && 24 + i < e.data.size(); ++i) v = (v << 8) | e.data[24 + i];
+  return v;
+}
+
+std::set<std::int64_t> skipped_deadlines(const std::string& daemon_log) {
   std::set<std::int64_t> skipped;
-  const std::string text = read_file(daemon_err);
   const std::regex overrun(R"(loop overrun at seq (\d+): .*?(\d+) deadline)");
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), overrun);
+  for (auto it = std::sregex_iterator(daemon_log.begin(), daemon_log.end(), overrun);
        it != std::sregex_iterator(); ++it) {
     const std::int64_t at = std::stoll((*it)[1]);
     for (std::int64_t k = std::stoll((*it)[2]); k > 0; --k) skipped.insert(at - k);
   }
+  return skipped;
+}
+
+std::set<std::int64_t> recorder_losses(const std::map<std::int64_t, encoder_raw_t>& recorded,
+                                       const std::set<std::int64_t>& skipped) {
   std::set<std::int64_t> lost;
   if (recorded.empty()) return lost;
-  for (std::int64_t q = *recorded.begin(); q < *recorded.rbegin(); ++q) {
+  for (std::int64_t q = 0; q < recorded.rbegin()->first; ++q) {
     if (recorded.count(q) == 0 && skipped.count(q) == 0) lost.insert(q);
   }
   return lost;
@@ -111,42 +117,42 @@ class ReplayLive : public ::testing::Test {
     live->config = write_sim_config(live->dir, live->prefix);
     live->log = live->dir + "/live.lcm";
     {
-      Process logger(lcm_logger_argv(std::string(kUrl) + "&recv_buf_size=4194304",
-                                     live->prefix + ".*", live->log),
+      Process logger({EXODAQ_TOOL, "record", "-o", live->log, "-u", kUrl, "--channels",
+                      live->prefix + ".*", "--priority", "10"},
                      live->dir + "/logger.out", live->dir + "/logger.err");
-      ASSERT_TRUE(wait_for_file(live->log, std::chrono::seconds(5))) << "lcm-logger did not start";
-      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      ASSERT_TRUE(wait_for_udp_socket(logger.pid(), kPort))
+          << "exodaq record did not subscribe: " << read_file(live->dir + "/logger.err");
       {
-        Process daemon({EXODAQD, "--config", live->config}, live->dir + "/exodaqd.out",
-                       live->dir + "/exodaqd.err");
-        // Long enough for the sim's homing sweeps of all six joints (~10 s)
-        // and a few reaches after, with room for the daemon's start-up (its
-        // 250 ms listening for another publisher) before the last excerpt
-        // (to 13.7 s) and the calibration markers (all joints homed).
-        std::this_thread::sleep_for(std::chrono::seconds(16));
+        // At debug level the daemon names every skipped deadline (skipped_deadlines).
+        Process daemon({EXODAQD, "--config", live->config, "--log-level", "debug"},
+                       live->dir + "/exodaqd.out", live->dir + "/exodaqd.err");
+        const bool reached = wait_for_seq(kUrl, live->prefix, kLiveSeqs - 1);
         daemon.signal(SIGINT);
-        const auto code = daemon.wait(std::chrono::seconds(10));
+        const auto code = daemon.wait(std::chrono::seconds(20));
         ASSERT_TRUE(code.has_value());
         ASSERT_EQ(*code, 0) << read_file(live->dir + "/exodaqd.err");
+        ASSERT_TRUE(reached) << "the daemon did not reach seq " << kLiveSeqs;
       }
-      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the last datagrams
+      live->recorder_kernel_drops = udp_drops(logger.pid());
       logger.signal(SIGINT);
       ASSERT_TRUE(logger.wait(std::chrono::seconds(10)).has_value());
     }
-    live->recorder_lost = recorder_losses(live->log, live->prefix, live->dir + "/exodaqd.err");
-    // The floors below assume the loop ran at least a quarter of its
-    // deadlines (a CI run under ASan on two loaded cores ran 68 %).
+    live->daemon_log = read_file(live->dir + "/exodaqd.err");
+    live->totals = daemon_totals(live->daemon_log);
+    live->skipped = skipped_deadlines(live->daemon_log);
     const auto raw =
         messages_by_seq<encoder_raw_t>(read_log(live->log), live->prefix + "EXO_ENCODER_RAW");
     ASSERT_FALSE(raw.empty()) << "no encoder_raw_t recorded";
-    const double deadlines = static_cast<double>(raw.rbegin()->first - raw.begin()->first + 1);
-    const double ran = static_cast<double>(raw.size() + live->recorder_lost.size()) / deadlines;
-    std::printf("live: %zu cycles recorded, the loop ran %.0f %% of %.0f deadlines\n", raw.size(),
-                100 * ran, deadlines);
-    ASSERT_GT(deadlines, 15'000) << "live run too short";
-    ASSERT_GE(ran, kLeastKept)
-        << "the loop skipped most deadlines: the machine is too slow for the "
-           "floors of this suite";
+    live->recorder_lost = recorder_losses(raw, live->skipped);
+    std::printf(
+        "live: seq 0..%lld used by the daemon: %lld cycles run, %lld deadlines skipped, %lld "
+        "publish failures; exodaq record recorded %zu raw messages, lost %zu (its socket's kernel "
+        "drops: %lld)\n",
+        static_cast<long long>(live->totals.cycles + live->totals.overruns - 1),
+        static_cast<long long>(live->totals.cycles), static_cast<long long>(live->totals.overruns),
+        static_cast<long long>(live->totals.publish_failures), raw.size(),
+        live->recorder_lost.size(), static_cast<long long>(live->recorder_kernel_drops));
     live->replay = live->dir + "/replay.lcm";
     const RunResult r = exodaq(
         {"replay", live->log, "--config", live->config, "--out", live->replay, "--speed", "max"});
@@ -170,10 +176,34 @@ std::vector<std::uint8_t> bytes_of(const Msg& m) {
   return b;
 }
 
-std::pair<std::size_t, std::size_t> expect_same_cycles(
-    const std::map<std::int64_t, joint_state_t>& ref_joint,
-    const std::map<std::int64_t, palm_pose_t>& ref_palm, const std::string& replay,
-    const std::string& p, std::int64_t first_seq, bool ref_is_replay, bool whole_run);
+// What expect_same_cycles compared.
+struct Compared {
+  std::size_t cycles = 0;      // joint_state_t and palm_pose_t byte for byte
+  std::size_t valid = 0;       // of them with a valid pose
+  std::size_t velocities = 0;  // joint velocities compared (a full fit window behind them)
+};
+
+Compared expect_same_cycles(const std::map<std::int64_t, joint_state_t>& ref_joint,
+                            const std::map<std::int64_t, palm_pose_t>& ref_palm,
+                            const std::string& replay, const std::string& p, std::int64_t first_seq,
+                            bool ref_is_replay, bool whole_run);
+
+// How many of `seqs` the reference has a joint state and a palm pose of: the
+// cycles both sides have, all of which a replay must reproduce.
+std::size_t in_both(const std::set<std::int64_t>& seqs,
+                    const std::map<std::int64_t, joint_state_t>& joint,
+                    const std::map<std::int64_t, palm_pose_t>& palm) {
+  return static_cast<std::size_t>(std::count_if(seqs.begin(), seqs.end(), [&](std::int64_t seq) {
+    return joint.count(seq) != 0 && palm.count(seq) != 0;
+  }));
+}
+
+template <typename Msg>
+std::set<std::int64_t> seqs_of(const std::map<std::int64_t, Msg>& by_seq) {
+  std::set<std::int64_t> out;
+  for (const auto& entry : by_seq) out.insert(entry.first);
+  return out;
+}
 
 TEST_F(ReplayLive, ReproducesLiveJointAndPalmMessagesExactly) {
   const auto live = read_log(g_live->log);
@@ -184,7 +214,7 @@ TEST_F(ReplayLive, ReproducesLiveJointAndPalmMessagesExactly) {
   const auto live_raw = messages_by_seq<encoder_raw_t>(live, p + "EXO_ENCODER_RAW");
   const auto rep_joint = messages_by_seq<joint_state_t>(replay, p + "EXO_JOINT_STATE");
   const auto rep_palm = messages_by_seq<palm_pose_t>(replay, p + "EXO_PALM_POSE");
-  ASSERT_GT(live_raw.size(), 15'000 * kLeastKept) << "live run too short";
+  ASSERT_FALSE(live_raw.empty());
   // One output cycle per recorded raw message, with the recorded seq.
   ASSERT_EQ(rep_joint.size(), live_raw.size());
   ASSERT_EQ(rep_palm.size(), live_raw.size());
@@ -192,23 +222,43 @@ TEST_F(ReplayLive, ReproducesLiveJointAndPalmMessagesExactly) {
     ASSERT_EQ(rep_joint.count(seq), 1U) << "seq " << seq;
   }
 
-  // The live run must have got somewhere: all joints homed, valid poses.
-  std::size_t valid = 0;
-  for (const auto& [seq, m] : live_palm) valid += m.valid ? 1 : 0;
-  EXPECT_GT(valid, 1000U);
+  // The daemon's own account holds: every seq it used is a cycle it ran or a
+  // deadline it skipped, every skip is in its log (unless it said events went
+  // unlogged), and a skipped seq is never published.
+  const DaemonTotals& t = g_live->totals;
+  EXPECT_LT(live_raw.rbegin()->first, t.cycles + t.overruns);
+  if (g_live->daemon_log.find("loop events were not logged") == std::string::npos) {
+    EXPECT_EQ(static_cast<std::int64_t>(g_live->skipped.size()), t.overruns);
+  }
+  for (const std::int64_t seq : g_live->skipped) {
+    EXPECT_EQ(live_raw.count(seq), 0U) << "skipped seq " << seq << " was published";
+  }
+
+  // The live run got somewhere: every joint homed by its end (the rig's time,
+  // seq 16000), valid poses.
+  const joint_state_t& last = live_joint.rbegin()->second;
+  for (int j = 0; j < 6; ++j) EXPECT_TRUE(last.homed[j]) << "joint " << j + 1;
 
   // Every cycle that the recorder caught on all three channels must match
   // byte for byte; the only difference allowed is the SAMPLE_REPLAY bit (and a
   // velocity fit over a cycle the recorder lost: expect_same_cycles).
-  const auto [compared, valid_compared] =
-      expect_same_cycles(live_joint, live_palm, g_live->replay, p, 0, false, true);
-  EXPECT_GT(valid_compared, 1000U);
-  // The recorder loses a datagram now and then on a loaded machine; more than
-  // 0.1 % would be a recording problem this test should not hide.
-  EXPECT_LE(g_live->recorder_lost.size(), live_raw.size() / 1000);
-  std::printf("replay: %zu cycles compared, %zu lost by the recorder\n", compared,
-              g_live->recorder_lost.size());
-  EXPECT_GT(compared, live_raw.size() * 99 / 100);
+  const Compared c = expect_same_cycles(live_joint, live_palm, g_live->replay, p, 0, false, true);
+  EXPECT_EQ(c.cycles, in_both(seqs_of(live_raw), live_joint, live_palm));
+  EXPECT_GT(c.valid, 0U);
+  EXPECT_GT(c.velocities, 0U);
+  std::printf("replay: %zu cycles compared (%zu valid poses), %zu lost by the recorder\n", c.cycles,
+              c.valid, g_live->recorder_lost.size());
+  // What the recorder lost (none, as a rule) it counted: the raw seq missing
+  // beyond the daemon's logged skips are its summary's lost.
+  const std::string summary = read_file(g_live->dir + "/live.summary.json");
+  const auto lost_of = [&](const std::string& kind) {
+    const std::size_t at = summary.find("\"" + kind + "\": {");
+    const std::size_t f = summary.find("\"lost\": ", at);
+    return at == std::string::npos || f == std::string::npos ? -1
+                                                             : std::stoll(summary.substr(f + 8));
+  };
+  EXPECT_EQ(static_cast<std::int64_t>(g_live->recorder_lost.size()), lost_of("encoder_raw"))
+      << summary;
 
   // Event timestamps are the messages' utime, as lcm-logger's are close to.
   for (const auto& e : replay) {
@@ -221,29 +271,28 @@ TEST_F(ReplayLive, ReproducesLiveJointAndPalmMessagesExactly) {
 }
 
 // Issue 16: a recording started while the service runs (an excerpt cut from
-// the middle of the live recording, by event time) replays to the live
-// values, continuing the live homing from the recorded homing_t.
+// the middle of the live recording) replays to the live values, continuing
+// the live homing from the recorded homing_t. Excerpts are cut by cycle, seq
+// [from, to) (the rig's time since start, in ms at 1 kHz), so that they hold
+// the same part of the task on any machine.
 struct Excerpt {
   std::string path;
   std::int64_t first_seq = -1;
-  std::int64_t raw_count = 0;
+  std::set<std::int64_t> raw_seqs;  // the raw messages it holds
 };
 
-Excerpt cut_excerpt(const std::vector<LogEvent>& log, const std::string& raw_channel, double from_s,
-                    double to_s, const std::string& path) {
-  const std::int64_t t0 = log.front().timestamp;
+Excerpt cut_excerpt(const std::vector<LogEvent>& log, const std::string& raw_channel,
+                    std::int64_t from_seq, std::int64_t to_seq, const std::string& path) {
   std::vector<LogEvent> part;
   Excerpt x;
   x.path = path;
   for (const auto& e : log) {
-    const double t = static_cast<double>(e.timestamp - t0) * 1e-6;
-    if (t < from_s || t >= to_s) continue;
+    const std::int64_t seq = seq_of(e);
+    if (seq < from_seq || seq >= to_seq) continue;
     part.push_back(e);
     if (e.channel == raw_channel) {
-      encoder_raw_t m;
-      if (m.decode(e.data.data(), 0, static_cast<int>(e.data.size())) < 0) continue;
-      if (x.first_seq < 0) x.first_seq = m.seq;
-      ++x.raw_count;
+      if (x.first_seq < 0) x.first_seq = seq;
+      x.raw_seqs.insert(seq);
     }
   }
   write_log(path, part);
@@ -253,12 +302,11 @@ Excerpt cut_excerpt(const std::vector<LogEvent>& log, const std::string& raw_cha
 // Every replayed cycle equals the reference's of the same seq, the replay
 // mark aside. A joint's velocity is compared from its 21st fresh sample on
 // (velocity_window 21): in an excerpt (`whole_run` false) and after a cycle
-// the recorder lost, the live fit used samples the replay never had. Returns
-// the cycles compared and how many had a valid pose.
-std::pair<std::size_t, std::size_t> expect_same_cycles(
-    const std::map<std::int64_t, joint_state_t>& ref_joint,
-    const std::map<std::int64_t, palm_pose_t>& ref_palm, const std::string& replay,
-    const std::string& p, std::int64_t first_seq, bool ref_is_replay, bool whole_run) {
+// the recorder lost, the live fit used samples the replay never had.
+Compared expect_same_cycles(const std::map<std::int64_t, joint_state_t>& ref_joint,
+                            const std::map<std::int64_t, palm_pose_t>& ref_palm,
+                            const std::string& replay, const std::string& p, std::int64_t first_seq,
+                            bool ref_is_replay, bool whole_run) {
   const auto log = read_log(replay);
   const auto rep_joint = messages_by_seq<joint_state_t>(log, p + "EXO_JOINT_STATE");
   const auto rep_palm = messages_by_seq<palm_pose_t>(log, p + "EXO_PALM_POSE");
@@ -267,10 +315,10 @@ std::pair<std::size_t, std::size_t> expect_same_cycles(
   if (whole_run) fresh.fill(kWindow);
   const std::set<std::int64_t>& lost = g_live->recorder_lost;
   std::int64_t previous = -1;
-  std::size_t compared = 0;
-  std::size_t valid = 0;
+  Compared c;
   for (const auto& [seq, rj0] : rep_joint) {
-    if (previous >= 0 && lost.lower_bound(previous + 1) != lost.lower_bound(seq)) fresh.fill(0);
+    // A cycle lost since the previous one (or before the first).
+    if (lost.lower_bound(previous + 1) != lost.lower_bound(seq)) fresh.fill(0);
     previous = seq;
     for (std::size_t j = 0; j < 6; ++j) {
       if ((rj0.flags[j] & joint_state_t::JOINT_HELD) == 0) ++fresh[j];
@@ -283,7 +331,11 @@ std::pair<std::size_t, std::size_t> expect_same_cycles(
     EXPECT_EQ(rj.sample_flags & kSampleReplay, kSampleReplay) << "seq " << seq;
     if (!ref_is_replay) rj.sample_flags &= ~kSampleReplay;
     for (std::size_t j = 0; j < 6; ++j) {
-      if (fresh[j] < kWindow) rj.velocity[j] = lj.velocity[j];
+      if (fresh[j] < kWindow) {
+        rj.velocity[j] = lj.velocity[j];
+      } else {
+        ++c.velocities;
+      }
     }
     if (bytes_of(rj) != bytes_of(lj)) {
       std::ostringstream d;
@@ -296,7 +348,7 @@ std::pair<std::size_t, std::size_t> expect_same_cycles(
       }
       ADD_FAILURE() << replay << ": joint_state_t differs at seq " << seq << " (excerpt from "
                     << first_seq << "):" << d.str();
-      return {compared, valid};
+      return c;
     }
     const palm_pose_t& lp = ref_palm.at(seq);
     const palm_pose_t& rp = rep_palm.at(seq);
@@ -304,18 +356,18 @@ std::pair<std::size_t, std::size_t> expect_same_cycles(
       ADD_FAILURE() << replay << ": palm_pose_t differs at seq " << seq << ": valid "
                     << int(lp.valid) << "/" << int(rp.valid) << " reason " << lp.invalid_reason
                     << "/" << rp.invalid_reason << " x " << lp.position[0] << "/" << rp.position[0];
-      return {compared, valid};
+      return c;
     }
-    ++compared;
-    valid += lp.valid ? 1 : 0;
+    ++c.cycles;
+    c.valid += lp.valid ? 1 : 0;
   }
-  return {compared, valid};
+  return c;
 }
 
-// Three excerpts from the middle of the live recording: while the sim homes
-// its joints one by one, and after, when every joint is homed.
-constexpr std::array<std::pair<double, double>, 3> kExcerpts = {
-    {{4.1, 6.3}, {8.35, 10.9}, {11.6, 13.7}}};
+// Three excerpts from the middle of the live recording, in seq: while the sim
+// homes its joints one by one, and after, when every joint is homed.
+constexpr std::array<std::pair<std::int64_t, std::int64_t>, 3> kExcerpts = {
+    {{4100, 6300}, {8350, 10900}, {11600, 13700}}};
 
 TEST_F(ReplayLive, ExcerptsFromTheMiddleReplayToTheLiveValues) {
   const auto live = read_log(g_live->log);
@@ -328,27 +380,24 @@ TEST_F(ReplayLive, ExcerptsFromTheMiddleReplayToTheLiveValues) {
     const Excerpt x =
         cut_excerpt(live, p + "EXO_ENCODER_RAW", kExcerpts[i].first, kExcerpts[i].second,
                     g_live->dir + "/excerpt" + std::to_string(i) + ".lcm");
-    // About 2 s of deadlines, of which the loop ran at least kLeastKept (a CI
-    // run under ASan: 1339 of 2200): still many velocity windows and the
-    // homing hand-over.
-    const auto nominal =
-        static_cast<std::int64_t>((kExcerpts[i].second - kExcerpts[i].first) * 1000);
-    ASSERT_GT(x.raw_count, nominal * kLeastKept) << x.path;
+    ASSERT_FALSE(x.raw_seqs.empty()) << x.path;
     const std::string out = g_live->dir + "/excerpt" + std::to_string(i) + "-replay.lcm";
     const RunResult r = exodaq({"replay", x.path, "-c", g_live->config, "-o", out});
     ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
     EXPECT_NE(r.out.find("homing: continued from the live run's record of seq"), std::string::npos)
         << r.out;
     EXPECT_EQ(r.err.find("no homing record"), std::string::npos) << r.err;
-    const auto [compared, valid] =
-        expect_same_cycles(live_joint, live_palm, out, p, x.first_seq, false, false);
-    EXPECT_GT(compared, static_cast<std::size_t>(x.raw_count) * 99 / 100) << x.path;
-    std::printf("excerpt %zu: %lld raw messages, %zu cycles compared, %zu valid poses\n", i,
-                static_cast<long long>(x.raw_count), compared, valid);
+    const Compared c = expect_same_cycles(live_joint, live_palm, out, p, x.first_seq, false, false);
+    // Every cycle of the excerpt that the recording holds whole, velocities
+    // once a fit window of the excerpt's own samples is behind them.
+    EXPECT_EQ(c.cycles, in_both(x.raw_seqs, live_joint, live_palm)) << x.path;
+    EXPECT_GT(c.velocities, 0U) << x.path;
+    std::printf("excerpt %zu: %zu raw messages, %zu cycles compared, %zu valid poses\n", i,
+                x.raw_seqs.size(), c.cycles, c.valid);
     if (i == kExcerpts.size() - 1) {
       // Every joint is homed by then: every pose is valid.
-      EXPECT_EQ(valid, compared) << "an invalid pose after homing";
-      EXPECT_GT(valid, 0U);
+      EXPECT_EQ(c.valid, c.cycles) << "an invalid pose after homing";
+      EXPECT_GT(c.valid, 0U);
     }
   }
 }
@@ -378,23 +427,24 @@ TEST_F(ReplayLive, ExcerptsWithANewCalibrationMatchTheWholeRecordingsReplay) {
     const RunResult r =
         exodaq({"replay", x.path, "-c", g_live->config, "--calibration", calibration, "-o", out});
     ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
-    const auto [compared, valid] =
-        expect_same_cycles(ref_joint, ref_palm, out, p, x.first_seq, true, false);
-    EXPECT_GT(compared, static_cast<std::size_t>(x.raw_count) * 99 / 100) << x.path;
+    const Compared c = expect_same_cycles(ref_joint, ref_palm, out, p, x.first_seq, true, false);
+    // The whole recording's replay has a cycle for every raw message.
+    EXPECT_EQ(c.cycles, x.raw_seqs.size()) << x.path;
     if (i == kExcerpts.size() - 1) {
       // Every joint is homed by then: every pose is valid.
-      EXPECT_EQ(valid, compared) << "an invalid pose after homing";
-      EXPECT_GT(valid, 0U);
+      EXPECT_EQ(c.valid, c.cycles) << "an invalid pose after homing";
+      EXPECT_GT(c.valid, 0U);
       // Recomputed, not copied: the palm moved with the new calibration.
       const auto rep = messages_by_seq<palm_pose_t>(read_log(out), p + "EXO_PALM_POSE");
       std::size_t moved = 0;
+      std::size_t with_live = 0;
       for (const auto& [seq, m] : rep) {
-        if (live_palm.count(seq) != 0 && m.valid &&
-            std::abs(m.position[0] - live_palm.at(seq).position[0]) > 1e-4) {
-          ++moved;
-        }
+        if (live_palm.count(seq) == 0 || !m.valid) continue;
+        ++with_live;
+        if (std::abs(m.position[0] - live_palm.at(seq).position[0]) > 1e-4) ++moved;
       }
-      EXPECT_GT(moved, valid * 99 / 100);
+      EXPECT_GT(with_live, 0U);
+      EXPECT_GT(moved, with_live * 99 / 100);
     }
   }
 }
@@ -404,7 +454,7 @@ TEST_F(ReplayLive, AnExcerptWithoutHomingRecordsSaysSo) {
   const std::string p = g_live->prefix;
   std::erase_if(live, [&](const LogEvent& e) { return e.channel == p + "EXO_HOMING"; });
   const Excerpt x =
-      cut_excerpt(live, p + "EXO_ENCODER_RAW", 11.6, 12.6, g_live->dir + "/excerpt-nohoming.lcm");
+      cut_excerpt(live, p + "EXO_ENCODER_RAW", 11600, 12600, g_live->dir + "/excerpt-nohoming.lcm");
   const std::string out = g_live->dir + "/excerpt-nohoming-replay.lcm";
   const RunResult r = exodaq({"replay", x.path, "-c", g_live->config, "-o", out});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
@@ -451,15 +501,17 @@ TEST_F(ReplayLive, LiveReplayIsSeenByEchoWithTheReplayFlag) {
   const auto live = read_log(g_live->log);
   const std::string p = g_live->prefix;
   const Excerpt x =
-      cut_excerpt(live, p + "EXO_ENCODER_RAW", 11.6, 13.1, g_live->dir + "/excerpt-live.lcm");
+      cut_excerpt(live, p + "EXO_ENCODER_RAW", 11600, 13100, g_live->dir + "/excerpt-live.lcm");
   const auto live_joint = messages_by_seq<joint_state_t>(live, p + "EXO_JOINT_STATE");
   const std::string out_prefix = unique_prefix("replive");
   const std::string echo_csv = g_live->dir + "/echo-live.csv";
   Process echo({EXODAQ_TOOL, "echo", "--url", std::string(kUrl) + "&recv_buf_size=4194304",
                 "--prefix", out_prefix, "--channel", "joint_state", "--count", "300", "--csv"},
                echo_csv, g_live->dir + "/echo-live.err");
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));  // echo subscribes
-  // 1.5 s of recording at 2x; echo needs 300 of its ~1500 joint states.
+  ASSERT_TRUE(wait_for_udp_socket(echo.pid(), kPort)) << "echo did not subscribe";
+  // 1.5 s of recording at 2x; echo needs 300 of its joint states (one per
+  // raw message of the excerpt).
+  ASSERT_GT(x.raw_seqs.size(), 300U);
   const RunResult r = exodaq({"replay", x.path, "-c", g_live->config, "--live", "--speed", "2",
                               "--url", kUrl, "--prefix", out_prefix});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
@@ -487,18 +539,25 @@ TEST_F(ReplayLive, LiveReplayIsSeenByEchoWithTheReplayFlag) {
   const std::size_t c_flags = column("sample_flags");
   ASSERT_LT(c_seq, header.size()) << line;
   ASSERT_LT(c_flags, header.size()) << line;
+  // Every row is a cycle of the excerpt (one joint state per raw message it
+  // holds), flagged as a replay, its flags the live ones where the recording
+  // also holds the live joint state (lcm-logger may have lost that one).
   int rows = 0;
+  int with_live = 0;
   while (std::getline(csv, line)) {
     const auto f = split(line);
     ASSERT_GT(f.size(), c_flags) << line;
     const std::int64_t seq = std::stoll(f[c_seq]);
     const std::int64_t flags = std::stoll(f[c_flags]);
     EXPECT_EQ(flags & kSampleReplay, kSampleReplay) << line;
-    ASSERT_EQ(live_joint.count(seq), 1U) << "seq " << seq << " not in the recording";
-    EXPECT_EQ(flags & ~std::int64_t{kSampleReplay}, live_joint.at(seq).sample_flags) << line;
+    ASSERT_EQ(x.raw_seqs.count(seq), 1U) << "seq " << seq << " not in the excerpt";
     ++rows;
+    if (live_joint.count(seq) == 0) continue;
+    EXPECT_EQ(flags & ~std::int64_t{kSampleReplay}, live_joint.at(seq).sample_flags) << line;
+    ++with_live;
   }
   EXPECT_EQ(rows, 300);
+  EXPECT_GT(with_live, 0);
 }
 
 TEST_F(ReplayLive, StatusIsWrittenAndRunIdIsTheRecordings) {
@@ -515,7 +574,13 @@ TEST_F(ReplayLive, StatusIsWrittenAndRunIdIsTheRecordings) {
     EXPECT_EQ(s.source, "replay");
     ++status;
   }
-  EXPECT_GT(status, 50);
+  // A status window closes after each cycle whose seq ends a status period
+  // (seq 99, 199, ...: 10 Hz at 1 kHz), as live; the recording decides how
+  // many it holds, and one more may close the replay.
+  const auto windows = std::count_if(live_raw.begin(), live_raw.end(),
+                                     [](const auto& e) { return (e.first + 1) % 100 == 0; });
+  EXPECT_GE(status, windows);
+  EXPECT_LE(status, windows + 1);
 }
 
 // --- export -----------------------------------------------------------------
@@ -605,8 +670,7 @@ TEST_F(ReplayLive, ExportOfADamagedLogNamesTheBytesAndKeepsEveryGoodEvent) {
   RunResult r = exodaq({"export", tail, "-o", tail_csv});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   const std::string range = "bytes " + std::to_string(good.size()) + ".." +
-                            std::to_string(good.size() + garbage.size()) +
-                            ": damaged or cut at the end";
+                            std::to_string(good.size() + garbage.size()) + ": ";
   EXPECT_NE(r.err.find("exodaq export: " + tail + ", " + range), std::string::npos) << r.err;
   EXPECT_EQ(read_text(tail_csv), read_text(reference));  // every good event kept
 
@@ -630,8 +694,9 @@ TEST_F(ReplayLive, ExportOfADamagedLogNamesTheBytesAndKeepsEveryGoodEvent) {
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE(r.err.find(mid_log + ", bytes " + std::to_string(at) + ".."), std::string::npos)
       << r.err;
-  EXPECT_NE(r.err.find(": damaged after event"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("those bytes were not read"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(": no event header here"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("; 1 event lost (after event "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("cycles lost with it: 1 (seq "), std::string::npos) << r.err;
   // That cycle's joint state is lost (its row with it), nothing else.
   EXPECT_EQ(read_csv(mid_csv).size() + 1, ref_rows.size());
 }
@@ -772,9 +837,10 @@ TEST_F(ReplayLive, CalibrateReadsTheRecordingAndFindsTheKnownCalibration) {
   const std::string dir = g_live->dir + "/calibrate";
   std::filesystem::create_directories(dir);
   const Markers m = synthesise_markers(dir);
-  // Every tenth clean cycle of the last ~5 s, five markers each: at least a
-  // hundred postures when the loop ran a quarter of its deadlines.
-  ASSERT_GT(m.rows, 5U * 100);
+  // Every tenth clean cycle of the last ~5 s of the rig's time, five markers
+  // each: what the fit of six offsets needs is a few postures per offset,
+  // far fewer than even a loop that ran a tenth of its deadlines gives.
+  ASSERT_GT(m.rows, 5U * 30) << "too few clean cycles recorded to fit six offsets";
   const std::string sim_cal = std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/sim.yaml";
 
   // The lcm-logger recording, raw channel re-processed with the config.
@@ -845,8 +911,11 @@ TEST(ReplayCandumpTool, SimFramesReplayToTheTruthWithinOneCount) {
   write_text(input, text);
 
   const std::string out = dir + "/replay.lcm";
+  // Malformed lines: the replay goes on, names them and exits 1.
   const RunResult r = exodaq({"replay", input, "--config", config, "--out", out});
-  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  ASSERT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find(input + ": damaged or malformed input (problems above)"), std::string::npos)
+      << r.err;
   EXPECT_NE(r.err.find(input + ":" + std::to_string(bad1) + ": bad data"), std::string::npos)
       << r.err;
   EXPECT_NE(r.err.find(input + ":" + std::to_string(bad1 + 1) + ": bad or missing timestamp"),

@@ -6,8 +6,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -135,6 +137,56 @@ RunResult run(const std::vector<std::string>& argv, std::chrono::milliseconds ti
   std::remove((dir + "/err").c_str());
   rmdir(dir.c_str());
   return r;
+}
+
+std::vector<UdpSocket> udp_sockets(pid_t pid) {
+  const std::string proc = "/proc/" + std::to_string(pid);
+  std::vector<std::string> inodes;
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(proc + "/fd", ec), end; !ec && it != end;
+       it.increment(ec)) {
+    std::error_code link_error;
+    const std::string target = std::filesystem::read_symlink(it->path(), link_error).string();
+    if (!link_error && target.rfind("socket:[", 0) == 0) {
+      inodes.push_back(target.substr(8, target.size() - 9));
+    }
+  }
+  std::vector<UdpSocket> out;
+  for (const char* table : {"/net/udp", "/net/udp6"}) {
+    std::ifstream in(proc + table);
+    std::string line;
+    std::getline(in, line);  // header
+    while (std::getline(in, line)) {
+      // sl local_address rem_address st tx:rx tr:when retrnsmt uid timeout inode ref pointer drops
+      std::istringstream f(line);
+      std::vector<std::string> col;
+      for (std::string c; f >> c;) col.push_back(c);
+      if (col.size() < 13) continue;
+      if (std::find(inodes.begin(), inodes.end(), col[9]) == inodes.end()) continue;
+      UdpSocket s;
+      const std::string& local = col[1];
+      s.local_port = static_cast<int>(std::stol(local.substr(local.find(':') + 1), nullptr, 16));
+      s.drops = std::stoll(col.back());
+      out.push_back(s);
+    }
+  }
+  return out;
+}
+
+std::int64_t udp_drops(pid_t pid) {
+  std::int64_t drops = 0;
+  for (const UdpSocket& s : udp_sockets(pid)) drops += s.drops;
+  return drops;
+}
+
+bool wait_for_udp_socket(pid_t pid, int port, std::chrono::milliseconds timeout) {
+  return wait_until(
+      [&] {
+        for (const UdpSocket& s : udp_sockets(pid))
+          if (s.local_port == port) return true;
+        return false;
+      },
+      timeout);
 }
 
 std::vector<std::string> lcm_logger_argv(const std::string& url, const std::string& channels,

@@ -4,6 +4,7 @@
 #include <sys/types.h>
 
 #include <chrono>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <optional>
@@ -39,6 +40,23 @@ class Process {
 // the test may (root), it runs at SCHED_FIFO 10, as docs/operations.md advises.
 std::vector<std::string> lcm_logger_argv(const std::string& url, const std::string& channels,
                                          const std::string& file);
+
+// The UDP sockets process `pid` holds (its /proc/PID/fd socket inodes found
+// in /proc/PID/net/udp, so in its own network namespace): each one's local
+// port and the datagrams the kernel dropped on it because its receive buffer
+// was full. A recorder's own measure of what it lost, read while it runs
+// (its sockets close when it exits).
+struct UdpSocket {
+  int local_port = 0;
+  std::int64_t drops = 0;
+};
+std::vector<UdpSocket> udp_sockets(pid_t pid);
+// The sum of udp_sockets(pid)'s drops.
+std::int64_t udp_drops(pid_t pid);
+// Until `pid` has a UDP socket bound to `port` (an LCM subscriber is then
+// subscribed: LCM binds and joins the group in one step); false after `timeout`.
+bool wait_for_udp_socket(pid_t pid, int port,
+                         std::chrono::milliseconds timeout = std::chrono::seconds(30));
 
 // Runs to completion; returns exit code and the captured stdout + stderr.
 struct RunResult {

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <regex>
 
 #include "process.hpp"
 
@@ -36,6 +37,22 @@ std::string write_config_text(const std::string& dir, const std::string& text) {
   out << text;
   if (!out) throw std::runtime_error("cannot write " + path);
   return path;
+}
+
+DaemonTotals daemon_totals(const std::string& log) {
+  static const std::regex line(
+      R"(stopped after (\d+) cycles \((\d+) overruns, (\d+) publish failures, (\d+) messages )"
+      R"(published)");
+  std::smatch m;
+  if (!std::regex_search(log, m, line)) {
+    throw std::runtime_error("no 'stopped after N cycles' line in the daemon's log");
+  }
+  DaemonTotals t;
+  t.cycles = std::stoll(m[1]);
+  t.overruns = std::stoll(m[2]);
+  t.publish_failures = std::stoll(m[3]);
+  t.published = std::stoll(m[4]);
+  return t;
 }
 
 std::string write_sim_config(const std::string& dir, const std::string& prefix,

@@ -29,6 +29,20 @@ void replace_once(std::string& text, const std::string& from, const std::string&
 // Writes `text` to dir/exodaqd.yaml; returns that path.
 std::string write_config_text(const std::string& dir, const std::string& text);
 
+// exodaqd's own account of a run, from its last log line ("stopped after N
+// cycles (O overruns, F publish failures, M messages published; ...)"):
+// what a test compares a recorder's holes with. Sync master: the cycles run
+// and the deadlines skipped add up to the seqs used (cycles + overruns ==
+// last seq + 1).
+struct DaemonTotals {
+  std::int64_t cycles = 0;
+  std::int64_t overruns = 0;          // deadlines skipped
+  std::int64_t publish_failures = 0;  // messages refused or dropped by the publish path
+  std::int64_t published = 0;         // messages sent
+};
+// Throws std::runtime_error when `log` (the daemon's log text) has no such line.
+DaemonTotals daemon_totals(const std::string& log);
+
 template <typename Msg>
 Msg decode(const std::vector<std::uint8_t>& d) {
   Msg m;

@@ -22,6 +22,10 @@ unit=$stage/lib/systemd/system/exodaqd.service
 [ -f "$unit" ] || fail "no unit at $unit"
 [ -x "$stage/bin/exodaqd" ] || fail "no exodaqd at $stage/bin"
 [ -f "$stage/lib/sysusers.d/exodaq.conf" ] || fail "no sysusers file"
+# The slice that makes the unit's MemoryMin= effective, installed as written.
+cmp -s "$stage/lib/systemd/system/exodaq.slice" "$src/systemd/exodaq.slice" ||
+  fail "exodaq.slice not installed as systemd/exodaq.slice"
+grep -q '^MemoryMin=' "$stage/lib/systemd/system/exodaq.slice" || fail "exodaq.slice has no MemoryMin="
 [ -f "$stage/etc/exodaq/exodaqd.yaml" ] || fail "no /etc/exodaq/exodaqd.yaml"
 
 # The staged unit is the source unit with the install paths moved, nothing else.
@@ -65,10 +69,14 @@ for key in "Type=notify" "WatchdogSec=" "Restart=on-failure" "User=exodaq" "Limi
   "ProtectKernelLogs=yes" "CapabilityBoundingSet=\$" \
   "RestrictAddressFamilies=AF_UNIX AF_INET AF_INET6 AF_CAN AF_NETLINK\$" \
   "SystemCallFilter=@system-service adjtimex" "ExecStartPre=.*--check-config" \
-  "After=.*time-sync.target" "Wants=sys-subsystem-net-devices-can0.device"; do
+  "After=.*time-sync.target" "Wants=sys-subsystem-net-devices-can0.device" \
+  "OOMScoreAdjust=-900\$" "Slice=exodaq.slice\$" "MemoryMin="; do
   grep -q "^$key" "$unit" || fail "unit lacks $key"
 done
-for key in ProtectClock RestrictRealtime CPUSchedulingPolicy "Requires=.*time-sync"; do
+# IPAddressDeny=/IPAddressAllow= filter received packets by source address:
+# "localhost multicast" made the foreign-run listener deaf (issue 25.8).
+for key in ProtectClock RestrictRealtime CPUSchedulingPolicy "Requires=.*time-sync" IPAddressDeny \
+  IPAddressAllow; do
   if grep -q "^$key" "$unit"; then fail "unit must not set $key"; fi
 done
 # The seccomp filter keeps the syscalls the daemon needs (glibc 2.36's

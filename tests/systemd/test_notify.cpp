@@ -2,7 +2,9 @@
 // the simulated rig with NOTIFY_SOCKET pointing at a datagram socket this test
 // owns (what systemd gives a Type=notify service) and WATCHDOG_USEC set (what
 // WatchdogSec= gives it). No systemd is involved; the protocol is the same.
-// Timing is asserted only as counts within generous bands.
+// Timing is asserted as the daemon's own schedule (never faster than it
+// should, a median ping interval, silence through a stall), never as a floor
+// that a loaded machine's delays decide.
 #include <gtest/gtest.h>
 #include <poll.h>
 #include <signal.h>
@@ -149,15 +151,22 @@ std::size_t count_between(const std::vector<Notification>& v, Clock::time_point 
 const std::set<std::string> kStates = {"starting", "homing", "running",
                                        "degraded", "fault",  "stopping"};
 
-// "STATUS=homing, 1000.0 Hz, cycle 123; ..." -> "homing"
+// "STATUS=homing 4/6, 1000.0 Hz, cycle 123; ..." -> "homing"
 std::string status_state(const Notification& n) {
   const std::string body = n.line.substr(std::strlen("STATUS="));
-  return body.substr(0, body.find(','));
+  return body.substr(0, body.find_first_of(" ,"));
 }
 
 long long status_cycle(const Notification& n) {
   std::smatch m;
   if (!std::regex_search(n.line, m, std::regex(", cycle ([0-9]+);"))) return -1;
+  return std::stoll(m[1]);
+}
+
+// "...; drops: 0 missing samples, 1 seq gaps, 6 overruns, ..." -> 6
+long long status_overruns(const Notification& n) {
+  std::smatch m;
+  if (!std::regex_search(n.line, m, std::regex(" ([0-9]+) overruns,"))) return -1;
   return std::stoll(m[1]);
 }
 
@@ -219,12 +228,26 @@ TEST(Notify, ReadyWatchdogStatusStopping) {
     ADD_FAILURE() << "before READY=1: " << n.line;
   }
 
-  // The pings: every 100 ms while cycling, so 30 in 3 s. The daemon never pings
-  // faster than half the interval (at most 31); a loaded machine may delay some.
+  // The pings: every 100 ms while cycling (half of WATCHDOG_USEC), so 30 in
+  // 3 s. The daemon never pings faster than that: at most 31, and one more
+  // read late at the window's start. A loaded machine delays some wake-ups
+  // of the main thread (it checks every 20 ms), never most of them: the
+  // median interval stays below 150 ms, where pinging at the whole
+  // WATCHDOG_USEC (200 ms) or never would not.
   const auto pings = lines_starting(all, "WATCHDOG=1");
   const std::size_t in_window = count_between(pings, from, to);
-  EXPECT_GE(in_window, 15U) << "pings in 3 s";
   EXPECT_LE(in_window, 32U) << "pings in 3 s";
+  std::vector<double> interval_ms;
+  for (std::size_t i = 1; i < pings.size(); ++i) {
+    if (pings[i - 1].at < from || pings[i].at >= to) continue;
+    interval_ms.push_back(
+        std::chrono::duration<double, std::milli>(pings[i].at - pings[i - 1].at).count());
+  }
+  ASSERT_GE(interval_ms.size(), 2U) << "pings in 3 s";
+  std::nth_element(interval_ms.begin(), interval_ms.begin() + interval_ms.size() / 2,
+                   interval_ms.end());
+  const double median_ms = interval_ms[interval_ms.size() / 2];
+  EXPECT_LT(median_ms, 150.0) << in_window << " pings in 3 s";
   for (const auto& p : pings) EXPECT_TRUE(p.is("WATCHDOG=1"));
 
   // STATUS= carries a service state, a rate and the cycle count; it is sent once
@@ -241,13 +264,27 @@ TEST(Notify, ReadyWatchdogStatusStopping) {
     EXPECT_NE(s.line.find(" Hz, cycle "), std::string::npos) << s.line;
     EXPECT_NE(s.line.find("missing samples"), std::string::npos) << s.line;
     EXPECT_NE(s.line.find("overruns"), std::string::npos) << s.line;
-    EXPECT_NE(s.line.find("clock "), std::string::npos) << s.line;
+    // The sim rig's clock.require_sync is ignore: not checked, never shouted.
+    EXPECT_NE(s.line.find("; clock not checked"), std::string::npos) << s.line;
+    EXPECT_EQ(s.line.find("UNSYNCHRONISED"), std::string::npos) << s.line;
+    // Homing shows its progress; degraded and fault say why.
+    if (state == "homing") {
+      EXPECT_TRUE(std::regex_search(s.line, std::regex("^STATUS=homing [0-6]/6, "))) << s.line;
+    }
+    if (state == "degraded" || state == "fault") {
+      EXPECT_TRUE(std::regex_search(s.line, std::regex("^STATUS=[a-z]+ \\([A-Z_]+\\)"))) << s.line;
+    }
     const long long c = status_cycle(s);
     EXPECT_GE(c, last_cycle) << s.line;
     last_cycle = c;
     seen.insert(state);
   }
-  EXPECT_GE(statuses.size(), 3U);
+  // Once a second (and on state changes) from READY=1 to STOPPING=1.
+  const auto stopping_at = lines_starting(all, "STOPPING=1");
+  ASSERT_FALSE(stopping_at.empty());
+  const auto seconds =
+      std::chrono::duration_cast<std::chrono::seconds>(stopping_at[0].at - ready->at);
+  EXPECT_GE(static_cast<long long>(statuses.size()), seconds.count() - 1);
   EXPECT_TRUE(seen.count("homing") || seen.count("running") || seen.count("degraded"))
       << "states seen: " << seen.size();
 
@@ -286,19 +323,20 @@ TEST(Notify, StalledLoopStopsWatchdog) {
   const auto stall_to = pings[gap_end].at;
   EXPECT_GE(stall_to - stall_from, 3s);
   // Pings while the loop ran, before the stall and after it.
-  EXPECT_GE(count_between(pings, Clock::time_point{}, stall_from + 1ms), 5U);
-  EXPECT_GE(count_between(pings, stall_to, Clock::time_point::max()), 5U);
+  EXPECT_GE(count_between(pings, Clock::time_point{}, stall_from + 1ms), 2U);
+  EXPECT_GE(count_between(pings, stall_to, Clock::time_point::max()), 2U);
 
   // The main thread lives on: STATUS= once a second during the stall, at
-  // 0 Hz, its cycle count where the stall began (cycle 1500 at the latest).
+  // 0 Hz, its counts where the stall began: the read of seq 1500 (1.5 s of
+  // the rig's time) blocks, so the cycles run and the deadlines skipped
+  // before it add up to 1500, however many a loaded machine skipped.
   const auto statuses = lines_starting(all, "STATUS=");
   std::size_t stalled_statuses = 0;
   for (const auto& s : statuses) {
     if (s.at < stall_from + 1600ms || s.at >= stall_to - 200ms) continue;
     ++stalled_statuses;
     EXPECT_NE(s.line.find(" 0.0 Hz,"), std::string::npos) << s.line;
-    EXPECT_LE(status_cycle(s), 1500) << s.line;
-    EXPECT_GE(status_cycle(s), 1000) << s.line;
+    EXPECT_EQ(status_cycle(s) + status_overruns(s), 1500) << s.line;
   }
   EXPECT_GE(stalled_statuses, 1U);
   EXPECT_EQ(lines_starting(all, "STOPPING=1").size(), 1U);

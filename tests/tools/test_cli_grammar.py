@@ -155,10 +155,12 @@ def check_errors(a):
     bad = {
         "calibrate": ["--encoders", missing, "--markers", missing, "--bounds", missing, "-o", "x"],
         "echo": ["-c", missing],
+        "example-session": ["/tmp/exodaq-grammar-never", "-c", missing],
         "export": [missing],
         "fk": ["--model", missing, "--joints-deg", "0,0,0,0,0,0"],
         "ik": ["--model", missing, "--palm-position", "0,0,0", "--palm-quaternion", "1,0,0,0"],
         "plot": [missing, "-o", "/tmp/exodaq-grammar-never"],
+        "record": ["-c", missing, "-o", "/tmp/exodaq-grammar-never.lcm"],
         "replay": [missing, "-c", src + "/config/sim.yaml", "-o", "/tmp/exodaq-grammar-never.lcm"],
         "shoulder-cor": ["--markers", missing, "--torso", "1,2,3", "--humerus", "4,5,6",
                          "--torso-axis", "1,2", "--humerus-axis", "4,5"],

@@ -3,6 +3,7 @@
 // each reproduction of the issue with the real programs (exodaqd, exodaq).
 // Needs root for the tmpfs "full filesystem" and the device nodes (skipped
 // otherwise, saying so).
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/mount.h>
 #include <sys/stat.h>
@@ -13,6 +14,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -178,6 +180,72 @@ TEST_F(Files, AnInputIsNeverAnOutput) {
   EXPECT_EQ(read_text(dir_ + "/in.lcm"), "recording");
 }
 
+// Issue 25 point 6: a link is followed only when the caller, or root in a
+// folder of the caller's or root's, made it (fs.protected_symlinks, checked
+// here whatever the sysctl says: it is 0 in containers). The other user is a
+// bare uid given to the link with lchown (needs root).
+constexpr uid_t kOtherUid = 4242;
+
+TEST_F(Files, ALinkOfAnotherUserIsNotFollowedAndNothingIsWritten) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root to give a link to another uid";
+  write_text(dir_ + "/victim.conf", "root's\n");
+  const std::string shared = dir_ + "/shared";  // like /tmp: sticky, world-writable
+  fs::create_directories(shared);
+  ASSERT_EQ(::chmod(shared.c_str(), 01777), 0);
+  fs::create_symlink(dir_ + "/victim.conf", shared + "/out.csv");
+  ASSERT_EQ(::lchown((shared + "/out.csv").c_str(), kOtherUid, kOtherUid), 0);
+  const std::string e = error_of([&] { files::write_output(shared + "/out.csv", "export\n"); });
+  EXPECT_EQ(e, shared + "/out.csv: '" + shared +
+                   "/out.csv' is a symbolic link of uid 4242 in a "
+                   "sticky folder of uid 0 ('root'): not followed "
+                   "(another user could have planted it; name the "
+                   "file it points to, or write elsewhere)");
+  EXPECT_EQ(error_of([&] { files::check_output(shared + "/out.csv"); }), e);
+  EXPECT_EQ(read_text(dir_ + "/victim.conf"), "root's\n");
+  EXPECT_EQ(hidden_files(shared), 0);
+
+  // A folder on the way that is such a link: the same.
+  fs::create_directories(dir_ + "/private");
+  fs::create_symlink(dir_ + "/private", shared + "/sub");
+  ASSERT_EQ(::lchown((shared + "/sub").c_str(), kOtherUid, kOtherUid), 0);
+  EXPECT_NE(error_of([&] {
+              files::write_output(shared + "/sub/out.csv", "x");
+            }).find("'" + shared + "/sub' is a symbolic link of uid 4242"),
+            std::string::npos);
+  EXPECT_FALSE(fs::exists(dir_ + "/private/out.csv"));
+
+  // A folder of another user's, not sticky: their link is not followed either.
+  const std::string theirs = dir_ + "/theirs";
+  fs::create_directories(theirs);
+  fs::create_symlink(dir_ + "/victim.conf", theirs + "/out.csv");
+  ASSERT_EQ(::lchown((theirs + "/out.csv").c_str(), kOtherUid, kOtherUid), 0);
+  ASSERT_EQ(::chown(theirs.c_str(), kOtherUid, kOtherUid), 0);
+  EXPECT_NE(error_of([&] {
+              files::write_output(theirs + "/out.csv", "x");
+            }).find("is a symbolic link of uid 4242 in a folder of uid 4242: not followed"),
+            std::string::npos);
+  EXPECT_EQ(read_text(dir_ + "/victim.conf"), "root's\n");
+}
+
+TEST_F(Files, TheCallersOwnLinksAreFollowedInAStickyFolder) {
+  const std::string shared = dir_ + "/shared";
+  fs::create_directories(shared + "/../data");
+  ASSERT_EQ(::chmod(shared.c_str(), 01777), 0);
+  write_text(dir_ + "/data/out.csv", "old\n");
+  fs::create_symlink("../data/out.csv", shared + "/out.csv");
+  fs::create_symlink("../data", shared + "/data-link");
+  files::write_output(shared + "/out.csv", "new\n");
+  EXPECT_TRUE(fs::is_symlink(shared + "/out.csv"));
+  EXPECT_EQ(read_text(dir_ + "/data/out.csv"), "new\n");
+  files::write_output(shared + "/data-link/second.csv", "2\n");
+  EXPECT_EQ(read_text(dir_ + "/data/second.csv"), "2\n");
+  // A name that is not a file to write.
+  EXPECT_EQ(error_of([&] { files::check_output(shared + "/"); }),
+            shared + "/: ends with '/': name a file to write");
+  EXPECT_EQ(error_of([&] { files::check_output("/"); }),
+            "/: is a directory, not a regular file: not replaced (name a file to write)");
+}
+
 TEST_F(Files, AFullFilesystemIsAnErrorWithTheReasonAndLeavesNothing) {
   const FullFilesystem full(dir_ + "/full");
   if (full.dir().empty()) GTEST_SKIP() << "cannot mount a tmpfs (needs root)";
@@ -197,10 +265,18 @@ TEST_F(Files, AFullFilesystemIsAnErrorWithTheReasonAndLeavesNothing) {
 
 TEST_F(Files, InputsAreCheckedBeforeReading) {
   ASSERT_EQ(::mkfifo((dir_ + "/fifo.yaml").c_str(), 0600), 0);
-  const auto t0 = std::chrono::steady_clock::now();
-  EXPECT_EQ(error_of([&] { files::read_input(dir_ + "/fifo.yaml", 100); }),
-            dir_ + "/fifo.yaml: is a FIFO, not a regular file");
-  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(5));  // not blocked
+  // Refused without blocking: an open() that waited for a writer would never
+  // return; then a writer is opened here to release it, and the test fails.
+  auto refused = std::async(std::launch::async, [&] {
+    return error_of([&] { files::read_input(dir_ + "/fifo.yaml", 100); });
+  });
+  if (refused.wait_for(std::chrono::seconds(60)) != std::future_status::ready) {
+    const int writer = ::open((dir_ + "/fifo.yaml").c_str(), O_WRONLY | O_NONBLOCK);
+    refused.wait();
+    ::close(writer);
+    FAIL() << "read_input blocked on a FIFO";
+  }
+  EXPECT_EQ(refused.get(), dir_ + "/fifo.yaml: is a FIFO, not a regular file");
   EXPECT_EQ(error_of([&] { files::read_input("/dev/zero", 100); }),
             "/dev/zero: is a character device, not a regular file");
   EXPECT_EQ(error_of([&] { files::read_input(dir_, 100); }),
@@ -341,6 +417,38 @@ TEST_F(ToolFiles, OutputsOnAFullFilesystemLeaveNothing) {
   std::vector<std::string> left;
   for (const auto& e : fs::directory_iterator(d)) left.push_back(e.path().filename().string());
   EXPECT_EQ(left, std::vector<std::string>{"filler"});
+}
+
+// Issue 25 point 6, as it was found: in a sticky world-writable folder,
+// another user (a process of uid 4242) plants out.csv -> a file of root's;
+// root's `exodaq export -o folder/out.csv` refuses and the file stays.
+TEST_F(ToolFiles, ExportAsRootThroughALinkPlantedByAnotherUserIsRefused) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root (the export runs as root, the planter not)";
+  ASSERT_EQ(::chmod(dir_.c_str(), 0755), 0);
+  write_text(dir_ + "/victim.conf", "root's\n");
+  ASSERT_EQ(::chmod((dir_ + "/victim.conf").c_str(), 0644), 0);
+  const std::string shared = dir_ + "/shared";
+  fs::create_directories(shared);
+  ASSERT_EQ(::chmod(shared.c_str(), 01777), 0);
+  const auto plant = test::run({"setpriv", "--reuid=4242", "--regid=4242", "--clear-groups", "ln",
+                                "-s", dir_ + "/victim.conf", shared + "/out.csv"});
+  ASSERT_EQ(plant.exit_code, 0) << plant.err;
+  struct stat st {};
+  ASSERT_EQ(::lstat((shared + "/out.csv").c_str(), &st), 0);
+  ASSERT_EQ(st.st_uid, kOtherUid);
+
+  const auto r = test::run({EXODAQ_TOOL, "export", g_rec->log, "-o", shared + "/out.csv"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "exodaq export: " + shared + "/out.csv: '" + shared +
+                       "/out.csv' is a symbolic link of uid 4242 in a sticky folder of uid 0 "
+                       "('root'): not followed (another user could have planted it; name the "
+                       "file it points to, or write elsewhere)\n");
+  EXPECT_EQ(read_text(dir_ + "/victim.conf"), "root's\n");
+  EXPECT_EQ(hidden_files(shared), 0);
+  // Named directly, root's file is written as asked.
+  const auto direct = test::run({EXODAQ_TOOL, "export", g_rec->log, "-o", dir_ + "/victim.conf"});
+  EXPECT_EQ(direct.exit_code, 0) << direct.err;
+  EXPECT_EQ(read_text(dir_ + "/victim.conf").rfind("utime", 0), 0u);
 }
 
 TEST_F(ToolFiles, AnOutputEqualToAnInputIsRefusedBeforeAnythingIsWritten) {

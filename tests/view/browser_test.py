@@ -15,9 +15,9 @@ a screenshot into --out:
                  segments keep the model's lengths (L1 = 0.145 m, L2 = 0.152 m),
                  the canvas shows the palm and every joint ring in its colour,
                  and the browser gets display-rate frames, not the 1 kHz stream
-  3 no-data      the daemon killed (SIGKILL): "no data" within a few seconds
+  3 no-data      the daemon killed (SIGKILL): "no data" (the time it took is logged)
   4 live again   a new daemon run: live, with the new run id
-  5 stopped      the daemon stopped (SIGTERM): "stopped" within a few seconds
+  5 stopped      the daemon stopped (SIGTERM): "stopped" (the time it took is logged)
   6 disconnected the view server gone: the page says so
 Needs Debian's chromium, chromium-driver and python3-selenium (scripts/setup).
 """
@@ -39,6 +39,7 @@ import urllib.request
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "support"))
 from sim_config import write_sim_config  # noqa: E402
+from udp_drops import udp_drops  # noqa: E402
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
@@ -88,6 +89,7 @@ class Recorder(threading.Thread):
         self.palm_channel = prefix + "EXO_PALM_POSE"
         self.rx = exodaq_lcm.Receiver(url, channels=[self.joint_channel, self.palm_channel])
         self.joints, self.palms = {}, {}
+        self.newest = {}  # (channel, run_id) -> the newest seq received
         self.lock = threading.Lock()
         self.stop = False
 
@@ -103,16 +105,25 @@ class Recorder(threading.Thread):
             seq, run_id = struct.unpack_from(">qq", data, 24)
             with self.lock:
                 (self.joints if channel == self.joint_channel else self.palms)[(run_id, seq)] = data
+                self.newest[(channel, run_id)] = max(seq, self.newest.get((channel, run_id), -1))
 
-    def get(self, table, run_id, seq, timeout=2.0):
+    def get(self, table, run_id, seq, timeout=WAIT_S):
+        """The payload of (run_id, seq), or None once this receiver holds a later
+        seq of that run on that channel without it: lost on this script's socket
+        (UDP on a loaded machine), not the page's doing. Fails when neither comes."""
+        channel = self.joint_channel if table is self.joints else self.palm_channel
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             with self.lock:
                 d = table.get((run_id, seq))
+                passed = self.newest.get((channel, run_id), -1) > seq
             if d is not None:
                 return d
+            if passed:
+                return None
             time.sleep(0.02)
-        return None
+        raise Failure("seq %d of run %x on %s: neither received nor passed in %d s" % (
+            seq, run_id, channel, timeout))
 
 
 class Test:
@@ -319,8 +330,12 @@ class Test:
         q_min = [math.inf] * 6
         q_max = [-math.inf] * 6
         first = None
-        end = time.monotonic() + 8.0
-        while time.monotonic() < end:
+        # 8 s of the rig's time (seq), and at least 25 samples of the page,
+        # however long a loaded machine takes (WAIT_S per sample at most).
+        give_up = time.monotonic() + 10 * WAIT_S
+        while first is None or sampled < 25 or s["drawn"]["seq"] - first[0] < 8000:
+            check(time.monotonic() < give_up, "the drawn seq went from %s to %s in %d s" % (
+                first and first[0], s["drawn"]["seq"], 10 * WAIT_S))
             s = self.state()
             check(s["display"] == "live", "display %r while the daemon runs (banner %r)" % (s["display"], s["banner"]))
             d = s["drawn"]
@@ -338,8 +353,8 @@ class Test:
         last = (s["drawn"]["seq"], s["counts"]["frame"], time.monotonic())
         self.log("%d drawn frames sampled, %d matched by seq, %d rings checked, classes %s" % (
             sampled, matched, rings, sorted(classes)))
-        check(sampled >= 10 and matched >= sampled * 0.8,
-              "only %d of %d sampled frames found in this script's LCM record" % (matched, sampled))
+        # Every sampled frame this script's receiver did not lose was checked.
+        check(matched > 0, "none of %d sampled frames found in this script's LCM record" % sampled)
         check(rings >= 2, "only %d joint rings could be checked on the canvas" % rings)
         moved = max(b - a for a, b in zip(q_min, q_max))
         check(moved > 0.05, "the drawn arm did not move (largest joint range %.4f rad)" % moved)
@@ -348,7 +363,7 @@ class Test:
         check(clock != "NOT SYNCHRONISED", "clock badge %r under require_sync: ignore" % clock)
         # Decimation: the page gets display-rate frames, each many 1 kHz cycles apart.
         frames = last[1] - first[1]
-        check(frames > 0, "no frame reached the page in 8 s")
+        check(frames > 0, "no frame reached the page in 8 s of the rig's time")
         seq_per_frame = (last[0] - first[0]) / frames
         check(seq_per_frame >= 10, "%.1f cycles per page frame: the 1 kHz stream reaches the browser" % seq_per_frame)
         self.log("%.1f cycles per page frame (display rate %s Hz)" % (seq_per_frame, s["view"]["display_hz"]))
@@ -359,7 +374,7 @@ class Test:
         daemon.send_signal(signal.SIGKILL)
         daemon.wait()
         t = time.monotonic()
-        s = self.wait_display("no-data", timeout=5)
+        s = self.wait_display("no-data")
         self.log("no-data after %.2f s: %s" % (time.monotonic() - t, s["banner"]))
         check("NO DATA" in s["banner"], "banner %r" % s["banner"])
         check(s["drawn"]["style"] == "stale", "the arm still drawn as live")
@@ -375,21 +390,37 @@ class Test:
         self.log("home posture checked in %d of 2 runs" % homes)
         self.screenshot("live-again")
 
-        # 5: the daemon stops: stopped.
+        # 5: the daemon stops: stopped. The view learns it from one datagram,
+        # the final status: if the view's own socket dropped datagrams while the
+        # daemon stopped (the kernel counts them; the view asks for no larger
+        # buffer than the default), that one may be among them, and the page
+        # can only say "no data"; otherwise it must say "stopped".
         time.sleep(1.0)
+        dropped_before = udp_drops(view.pid)
         daemon.send_signal(signal.SIGTERM)
         check(daemon.wait(timeout=WAIT_S) == 0, "exodaqd exited %s on SIGTERM" % daemon.returncode)
         t = time.monotonic()
-        s = self.wait_display("stopped", timeout=5)
-        self.log("stopped after %.2f s: %s" % (time.monotonic() - t, s["banner"]))
-        check("STOPPED" in s["banner"], "banner %r" % s["banner"])
-        check(s["status"]["state"] == "STOPPING", "last status %s" % s["status"]["state"])
-        self.check_canvas()
-        self.screenshot("stopped")
+        try:
+            s = self.wait_display("stopped")
+            stopped = True
+        except Failure:
+            dropped = udp_drops(view.pid) - dropped_before
+            if dropped == 0:
+                raise
+            self.log("not judged: the view's socket dropped %d datagrams while the daemon "
+                     "stopped, its final status may be one of them" % dropped)
+            stopped = False
+        if stopped:
+            self.log("stopped after %.2f s: %s (view socket drops %d in the run)" % (
+                time.monotonic() - t, s["banner"], udp_drops(view.pid)))
+            check("STOPPED" in s["banner"], "banner %r" % s["banner"])
+            check(s["status"]["state"] == "STOPPING", "last status %s" % s["status"]["state"])
+            self.check_canvas()
+            self.screenshot("stopped")
 
         # The server's answers besides the page.
         state_json = urllib.request.urlopen(url + "state.json", timeout=5).read().decode()
-        check('"state":"stopped"' in state_json, "state.json: %s" % state_json[:200])
+        check(not stopped or '"state":"stopped"' in state_json, "state.json: %s" % state_json[:200])
         try:
             urllib.request.urlopen(url + "no-such-page", timeout=5)
             raise Failure("no 404 for an unknown path")
@@ -399,7 +430,7 @@ class Test:
         # 6: the view server goes away.
         view.send_signal(signal.SIGTERM)
         check(view.wait(timeout=WAIT_S) == 0, "exodaq view exited %s on SIGTERM" % view.returncode)
-        s = self.wait_display("disconnected", timeout=8)
+        s = self.wait_display("disconnected")
         check("DISCONNECTED" in s["banner"], "banner %r" % s["banner"])
         self.screenshot("disconnected")
         rec.stop = True

@@ -10,6 +10,7 @@
 #include <arpa/inet.h>
 
 #include <chrono>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -43,13 +44,23 @@ struct Harness {
 
 class Client {
  public:
-  explicit Client(int port, int rcvbuf = 0) {
+  // `from`: the client's own address (any of 127.0.0.0/8 is this host's).
+  explicit Client(int port, int rcvbuf = 0, const char* from = nullptr,
+                  const char* to = "127.0.0.1") {
     fd_ = socket(AF_INET, SOCK_STREAM, 0);
     if (rcvbuf > 0) setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+    if (from != nullptr) {
+      sockaddr_in src{};
+      src.sin_family = AF_INET;
+      inet_pton(AF_INET, from, &src.sin_addr);
+      if (bind(fd_, reinterpret_cast<sockaddr*>(&src), sizeof src) != 0) {
+        throw std::runtime_error("bind to a client address failed");
+      }
+    }
     sockaddr_in a{};
     a.sin_family = AF_INET;
     a.sin_port = htons(static_cast<uint16_t>(port));
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    inet_pton(AF_INET, to, &a.sin_addr);
     if (connect(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
       throw std::runtime_error("connect failed");
     }
@@ -143,16 +154,46 @@ TEST(ViewHttp, RejectsWhatItDoesNotSpeak) {
   EXPECT_EQ(h.server.stats().bad_requests, 5);
 }
 
-TEST(ViewHttp, OnLoopbackOnlyLoopbackHostNamesAreServed) {
+int status_of(Harness& h, const std::string& host_line, const char* to = "127.0.0.1") {
+  Client c(h.server.port(), 0, nullptr, to);
+  c.send_text("GET /a HTTP/1.1\r\n" + host_line + "\r\n\r\n");
+  const std::string r = c.until_closed(h);
+  return r.size() > 12 ? std::stoi(r.substr(9, 3)) : 0;
+}
+
+// Issue 25.9: only this server's own names, exactly, with an optional port.
+TEST(ViewHttp, OnlyThisServersOwnHostNamesAreServed) {
   Harness h;
-  EXPECT_EQ(request(h, "GET /a HTTP/1.1\r\nHost: localhost:8077\r\n\r\n").rfind("HTTP/1.1 200", 0),
-            0u);
-  EXPECT_EQ(request(h, "GET /a HTTP/1.1\r\nhost:127.0.0.1\r\n\r\n").rfind("HTTP/1.1 200", 0), 0u);
-  EXPECT_EQ(request(h, "GET /a HTTP/1.1\r\nHOST: [::1]:80\r\n\r\n").rfind("HTTP/1.1 200", 0), 0u);
+  for (const char* ok : {"Host: localhost:8077", "host:127.0.0.1", "HOST: [::1]:80",
+                         "Host: LOCALHOST", "Host: [0:0:0:0:0:0:0:1]"}) {
+    EXPECT_EQ(status_of(h, ok), 200) << ok;
+  }
   // A page elsewhere whose name was made to resolve to 127.0.0.1 (DNS rebinding).
-  const std::string r = request(h, "GET /a HTTP/1.1\r\nHost: evil.example:8077\r\n\r\n");
+  for (const char* bad : {"Host: evil.example:8077", "Host: 127.0.0.1.evil.example",
+                          "Host: localhost.evil.example", "Host: 127.0.0.2", "Host: localhost:80x",
+                          "Host: localhost:", "Host: ::1", "Host: 127.0.0.1:8077/x",
+                          "Host: user@localhost", "Host: localhost\r\nHost: evil.example"}) {
+    EXPECT_EQ(status_of(h, bad), 403) << bad;
+  }
+  const std::string r = request(h, "GET /a HTTP/1.1\r\nHost: 127.0.0.1.evil.example\r\n\r\n");
   EXPECT_EQ(r.rfind("HTTP/1.1 403 Forbidden\r\n", 0), 0u) << r;
-  EXPECT_NE(r.find("Host 'evil.example' is not this computer's loopback"), std::string::npos) << r;
+  EXPECT_NE(r.find("Host '127.0.0.1.evil.example' is not an address of this server: open http://"),
+            std::string::npos)
+      << r;
+}
+
+TEST(ViewHttp, TheBoundAddressIsOneOfItsNamesAndAWildcardTakesAnyAddress) {
+  HttpOptions o;
+  o.bind = "127.0.0.2";
+  Harness h(o);
+  EXPECT_EQ(status_of(h, "Host: 127.0.0.2:8077", "127.0.0.2"), 200);
+  EXPECT_EQ(status_of(h, "Host: localhost", "127.0.0.2"), 200);
+  EXPECT_EQ(status_of(h, "Host: 127.0.0.3", "127.0.0.2"), 403);
+  HttpOptions any;
+  any.bind = "0.0.0.0";
+  Harness w(any);
+  EXPECT_EQ(status_of(w, "Host: 10.1.2.3:8077"), 200);  // an address: no rebinding
+  EXPECT_EQ(status_of(w, "Host: rig-pc.lab:8077"), 403);
 }
 
 TEST(ViewHttp, RequestHeaderTooLargeIs431) {
@@ -283,17 +324,62 @@ TEST(ViewHttp, VanishedStreamClientIsDroppedWithoutSigpipe) {
   EXPECT_EQ(h.server.stats().stream_clients, 0);
 }
 
-TEST(ViewHttp, RefusesConnectionsBeyondTheLimit) {
+// Issue 25.9: connections held open by some clients never lock others out.
+// Beyond its own limit a client loses its oldest connection (idle first);
+// when all places are taken, the client holding the most loses one.
+TEST(ViewHttp, ANewConnectionBeyondALimitClosesTheBusiestClientsOldest) {
   HttpOptions o;
-  o.max_connections = 2;
+  o.max_connections = 6;
+  o.max_per_client = 4;
   Harness h(o);
-  Client a(h.server.port());
-  Client b(h.server.port());
+  Client page(h.server.port(), 0, "127.0.0.1");
+  page.send_text("GET /events HTTP/1.1\r\n\r\n");
+  ASSERT_TRUE(page.until_received(h, "event: hello"));
+  // One client opens 10: 4 stay (its last 4), 6 are closed.
+  std::vector<std::unique_ptr<Client>> flood;
+  for (int i = 0; i < 10; ++i) {
+    flood.push_back(std::make_unique<Client>(h.server.port(), 0, "127.0.0.2"));
+    h.step();
+  }
+  h.step();
+  int open = 0;
+  for (std::size_t i = 0; i < flood.size(); ++i) {
+    const bool alive = flood[i]->poll_read();
+    open += alive ? 1 : 0;
+    EXPECT_EQ(alive, i >= 6) << i;
+  }
+  EXPECT_EQ(open, 4);
+  EXPECT_EQ(h.server.stats().evicted, 6);
+  // Another client with 2 fills the server (4 + 2 + the page's stream = 7 > 6):
+  // a place is taken from the busiest client, not from the page.
+  Client c1(h.server.port(), 0, "127.0.0.3");
+  Client c2(h.server.port(), 0, "127.0.0.3");
   h.step();
   h.step();
+  EXPECT_EQ(h.server.stats().evicted, 7);
+  EXPECT_FALSE(flood[6]->poll_read());  // the busiest client's oldest
+  EXPECT_TRUE(page.poll_read());
+  EXPECT_EQ(h.server.stats().stream_clients, 1);
+  // A new visitor is served, not refused.
   const std::string r = request(h, "GET /a HTTP/1.1\r\n\r\n");
-  EXPECT_EQ(r.rfind("HTTP/1.1 503 ", 0), 0u) << r;
-  EXPECT_EQ(h.server.stats().refused, 1);
+  EXPECT_EQ(r.rfind("HTTP/1.1 200 OK\r\n", 0), 0u) << r;
+  h.server.publish("frame", "{\"seq\":1}", true, h.now_ns);
+  EXPECT_TRUE(page.until_received(h, "data: {\"seq\":1}"));
+}
+
+TEST(ViewHttp, ConnectionsThatSendNothingAreClosedAfterTheIdleTimeout) {
+  HttpOptions o;
+  o.idle_timeout_ns = 2 * kSecond;
+  Harness h(o);
+  Client idle(h.server.port());
+  Client started(h.server.port());
+  started.send_text("GET /a HT");
+  h.step();
+  h.step();
+  h.now_ns += 3 * kSecond;
+  EXPECT_EQ(idle.until_closed(h), "");
+  EXPECT_TRUE(started.poll_read());  // a request under way has request_timeout
+  EXPECT_EQ(h.server.stats().idle_closed, 1);
 }
 
 TEST(ViewHttp, ListeningErrorsNameTheAddressAndTheReason) {

@@ -175,7 +175,8 @@ TEST(ViewScene, StoppingStatusWithTheStreamStillFlowingIsNotStopped) {
   EXPECT_EQ(scene.stream_state(kSecond + kMs), StreamState::kLive);
 }
 
-// The kernel's 16 s error bound (no NTP estimate) is "unknown", and an
+// The kernel's 16 s error bound (no NTP estimate) is null (the page says
+// "unknown"), for the estimated and the maximum error alike, and an
 // unsynchronised clock the config ignores is said to be ignored (issue 16.9).
 TEST(ViewScene, ClockWithoutAnEstimateUnderRequireSyncIgnore) {
   SceneOptions ignoring;
@@ -184,20 +185,28 @@ TEST(ViewScene, ClockWithoutAnEstimateUnderRequireSyncIgnore) {
   status_t s{};
   s.clock_synchronised = false;
   s.clock_est_error_us = 16'000'000.0;
+  s.clock_max_error_us = 16'000'000.0;
+  s.state = status_t::STATE_DEGRADED;
   scene.on_status(s, kSecond);
   const auto ev = named(scene.tick(kSecond), "status");
   ASSERT_EQ(ev.size(), 1u);
-  EXPECT_NE(ev[0].json.find("\"synchronised\":false,\"required\":false,\"est_error_us\":null"),
+  EXPECT_NE(ev[0].json.find("\"synchronised\":false,\"required\":false,\"est_error_us\":null,"
+                            "\"max_error_us\":null,"),
             std::string::npos)
       << ev[0].json;
+  // The state by name only: no numeric code beside it.
+  EXPECT_NE(ev[0].json.find("\"state\":\"DEGRADED\","), std::string::npos) << ev[0].json;
+  EXPECT_EQ(ev[0].json.find("state_code"), std::string::npos) << ev[0].json;
 
   ViewScene strict(macaque(), SceneOptions{});
   s.clock_synchronised = true;
   s.clock_est_error_us = 250.0;
+  s.clock_max_error_us = 1500.5;
   strict.on_status(s, kSecond);
   const auto ev2 = named(strict.tick(kSecond), "status");
   ASSERT_EQ(ev2.size(), 1u);
-  EXPECT_NE(ev2[0].json.find("\"synchronised\":true,\"required\":true,\"est_error_us\":250"),
+  EXPECT_NE(ev2[0].json.find("\"synchronised\":true,\"required\":true,\"est_error_us\":250,"
+                             "\"max_error_us\":1500.5,"),
             std::string::npos)
       << ev2[0].json;
 }
