@@ -2,6 +2,7 @@
 performance.json and hands it to the report (or only re-renders an existing JSON)."""
 import argparse
 import datetime
+import difflib
 import json
 import os
 import shutil
@@ -31,7 +32,12 @@ def parse_args(argv):
     ap.add_argument("--reuse", default=None, help="a previous performance.json: parts not in --only are taken from it")
     ap.add_argument("--report-only", metavar="JSON", default=None,
                     help="measure nothing: re-judge JSON's figures and re-render the report into --out")
+    ap.add_argument("--check", metavar="PAGE", default=None,
+                    help="with --report-only: write nothing; exit 1 with a diff unless PAGE is what "
+                         "--report-only renders from JSON (with the JSON's own render date)")
     args = ap.parse_args(argv)
+    if args.check and not args.report_only:
+        sys.exit("bench/run: --check needs --report-only JSON")
     args.parts = [p.strip() for p in args.only.split(",") if p.strip()]
     for p in args.parts:
         if p not in PARTS:
@@ -87,15 +93,38 @@ def measure(args):
     return res
 
 
-def load_for_report(path):
-    """A performance.json to re-render; what schema 1 did not record is filled in."""
+def load_for_report(path, keep_date=False):
+    """A performance.json to re-render; what schema 1 did not record is filled in. The
+    render is stamped with now, or (keep_date) keeps the JSON's own stamp, if any."""
     with open(path, encoding="utf-8") as f:
         res = json.load(f)
-    res["machine"].setdefault("lcm", lcm_version())  # schema 1 asked pkg-config when rendering
+    if "lcm" not in res["machine"]:
+        res["machine"]["lcm"] = lcm_version()  # schema 1 asked pkg-config when rendering
     res["schema"] = SCHEMA
-    res["rendered"] = {"by": f"bench/run --report-only {rel(path)}",
-                       "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
+    if not keep_date:
+        res["rendered"] = {"by": f"bench/run --report-only {rel(path)}",
+                           "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
     return res
+
+
+def check(res, page):
+    """0 when page is the report rendered from res (the plot linked when page's directory
+    has performance.png), else 1 after printing a unified diff."""
+    res["targets"] = targets.as_json()
+    res["verdicts"] = targets.evaluate(res)
+    png = "performance.png" if "scaling" in res and os.path.exists(
+        os.path.join(os.path.dirname(os.path.abspath(page)), "performance.png")) else None
+    want = report.markdown(res, png)
+    with open(page, encoding="utf-8") as f:
+        have = f.read()
+    if have == want:
+        log(f"{rel(page)} is the report rendered from the JSON")
+        return 0
+    sys.stdout.writelines(difflib.unified_diff(have.splitlines(True), want.splitlines(True),
+                                               f"{rel(page)} (as committed)", "rendered from the JSON"))
+    log(f"{rel(page)} differs from the report rendered from the JSON (above: what a re-render changes); "
+        "re-render it (bench/run --report-only JSON) or port the page's edits to bench/exodaq_bench/report/")
+    return 1
 
 
 def finish(res, out):
@@ -114,6 +143,8 @@ def finish(res, out):
 
 def main(argv=None):
     args = parse_args(argv)
+    if args.check:
+        sys.exit(check(load_for_report(args.report_only, keep_date=True), args.check))
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
     res = load_for_report(args.report_only) if args.report_only else measure(args)

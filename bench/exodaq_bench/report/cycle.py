@@ -31,25 +31,26 @@ def section(res):
          "`Acquisition::run_cycle()` driven without threads (`prepare_for_manual_cycles()`), on the",
          "real `sim` source built from `config/sim.yaml` exactly as exodaqd builds it, after a warm-up",
          f"until every joint is homed and the service is `running` ({'yes' if c['homed_and_running'] else 'NO'} "
-         "here). One cycle = sim source read",
-         "(simulate the rig, encode its CAN frames, decode them with the real `BoardDecoder`) → unwrap →",
-         "homing/offsets → FK → Jacobian → manipulability → encode joint_state, palm_pose, encoder_raw",
-         f"(and status every {c['status_every_cycles']}th cycle) into the publisher's ring. The ring is drained "
-         "into a counting sink",
-         "between timed cycles: handing bytes to LCM is the publisher thread's work, not the loop's.",
-         f"The harness runs under {c.get('harness_policy', 'SCHED_OTHER')}, like the loop thread. Each cycle is "
-         "timed with `clock_gettime(CLOCK_MONOTONIC)` "
-         f"(a pair costs {c['clock_gettime_pair_ns']:.0f} ns here, included).\n"]
+         "here).\n",
+         "One cycle = sim source read (simulate the rig, encode its CAN frames, decode them with the",
+         "real `BoardDecoder`) → unwrap → homing/offsets → FK → Jacobian → manipulability → encode",
+         f"joint_state, palm_pose, encoder_raw (and status every {c['status_every_cycles']}th cycle) into the "
+         "publisher's ring.\n",
+         "The ring is drained into a counting sink between timed cycles: handing bytes to LCM is not",
+         f"the harness's work. The harness runs under {c.get('harness_policy', 'SCHED_OTHER')}, like the loop "
+         "thread. Each cycle is",
+         f"timed with `clock_gettime(CLOCK_MONOTONIC)` (a pair costs {c['clock_gettime_pair_ns']:.0f} ns here, "
+         "included).\n"]
     L += table(c, rt_e2e(res))
     L += ["The first rows run cycles back to back: caches, TLB and branch predictors stay warm, and",
           "committing a message to the ring is an atomic store, with one uncontended `sem_post` per",
           "cycle. The loop does not run like that: it sleeps a millisecond between cycles (cold caches:",
-          "the *paced* row), and its one `notify()` per cycle posts the semaphore the publisher thread",
-          "sleeps on, which makes `sem_post` a `futex` wake-up system call (on this VM a wake-up across",
-          "CPUs costs an IPI, i.e. a VM exit) — the *publisher thread* row and the daemon's own figure.",
-          f"All three are held to the same target, p99 {targets.text('in_loop_work_p99')}: the hot-loop p99",
-          "is the figure it was first written for; the in-daemon p99 is the one the loop actually pays.",
-          "",
+          "the *paced* row).\n",
+          "With the publisher thread running, `sem_post` on the semaphore it sleeps on is a `futex`",
+          "wake-up system call (on this VM a wake-up across CPUs costs an IPI, i.e. a VM exit): the",
+          f"*publisher thread* row. All three are held to the same target, p99 {targets.text('in_loop_work_p99')}; "
+          "the in-daemon p99",
+          "is the one the loop actually pays.\n",
           f"Google Benchmark `BM_Cycle` (median of 5 repetitions): {c['gbench_cycle_cpu_ns']:.0f} ns CPU, "
           f"{c['gbench_cycle_real_ns']:.0f} ns wall per cycle",
           f"(`BM_SimSourceRead`: {c['gbench_sim_source_read_cpu_ns']:.0f} ns CPU). The max and the mean are "
@@ -61,7 +62,7 @@ def section(res):
 
 def allocations(c):
     return [f"**Allocations:** {c['allocations']} heap allocations (operator new + malloc, counted per thread by",
-            f"`tests/support/alloc_counter`) on the loop thread over the {c['cycles']} timed cycles, "
+            f"`tests/support/alloc_counter.cpp`) on the loop thread over the {c['cycles']} timed cycles, "
             f"{c['allocations_process']} in",
             "the whole process; `BM_Cycle` counts the same (`allocs_per_cycle`). With the threads running",
             "(loop, publisher, clock monitor), `tests/daemon/test_acquisition.cpp`",

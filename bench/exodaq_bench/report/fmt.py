@@ -42,7 +42,8 @@ def verdict(res, row_id, policy=None):
 
 
 def prose(name):
-    """report/prose/NAME.md with every {target:ID} replaced by that target's text."""
+    """report/prose/NAME.md with every {target:ID} replaced by that target's text (a
+    caller may fill the rest with render())."""
     with open(os.path.join(PROSE, name + ".md"), encoding="utf-8") as f:
         text = f.read()
     return re.sub(r"\{target:(\w+)\}", lambda m: targets.text(m.group(1)), text).rstrip() + "\n"
