@@ -161,7 +161,7 @@ void JointTracker::rebuild_fit(std::int64_t anchor_t_ns, std::int64_t anchor_cou
 
 // The least-squares slope of count over time, n Stc - St Sc over n Stt - St^2,
 // exact in integers and rounded once per operand: the same line the former
-// two-pass double loop fitted, to within a few ulp (tests/daemon/test_joint_tracker.cpp).
+// two-pass double loop fitted, to within a few ulp (tests/core/test_joint_tracker.cpp).
 void JointTracker::update_velocity(std::int64_t t_ns) noexcept {
   const int window = config_.velocity_window;
   if (vel_n_ == 0 || std::llabs(t_ns - fit_t0_) >= kFitMaxDt ||

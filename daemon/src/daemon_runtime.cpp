@@ -441,22 +441,11 @@ void log_event(const LogEvent& e, const AcquisitionConfig& ac, std::int64_t run_
   }
 }
 
-const char* bus_state_text(drivers::BusState s) {
-  switch (s) {
-    case drivers::BusState::kUnknown:
-      return "";
-    case drivers::BusState::kActive:
-      return ", bus active";
-    case drivers::BusState::kWarning:
-      return ", bus warning";
-    case drivers::BusState::kPassive:
-      return ", bus passive";
-    case drivers::BusState::kOff:
-      return ", BUS-OFF";
-    case drivers::BusState::kDown:
-      return ", interface down";
-  }
-  return "";
+// ", bus ACTIVE", ", bus OFF", ...: the names of msg::bus_state_name, the
+// ones `exodaq status` prints; nothing while the state is unknown.
+std::string bus_state_text(drivers::BusState s) {
+  if (s == drivers::BusState::kUnknown) return "";
+  return ", bus " + std::string(msg::bus_state_name(static_cast<std::int8_t>(s)));
 }
 
 // The state, why, and the homing progress: "homing 4/6", "degraded (OVERRUNS)",
@@ -493,7 +482,7 @@ std::string status_line(Acquisition& acq, double rate_hz, config::RequireSync po
       " seq gaps, %" PRId64 " overruns, %" PRId64 " publish failures; %" PRId64 " bus errors%s; %s",
       state_text(acq).c_str(), rate_hz, acq.cycles(), stats.missing_samples, stats.seq_gaps,
       acq.overruns(), publish.failures + publish.ring_drops, stats.bus_errors,
-      bus_state_text(stats.bus_state), clock_text(acq.clock_shared(), policy));
+      bus_state_text(stats.bus_state).c_str(), clock_text(acq.clock_shared(), policy));
   std::string line = text + PublishWatch::status_text(publish);
   if (log_dropped > 0) line += "; " + std::to_string(log_dropped) + " log lines dropped";
   return line;

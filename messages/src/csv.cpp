@@ -361,10 +361,24 @@ std::string line(const std::vector<std::string>& values) {
   return out;
 }
 
-bool split(std::string_view text, std::vector<std::string>& out) {
+namespace {
+std::string_view trimmed(std::string_view s) {
+  const auto b = s.find_first_not_of(" \t\r");
+  if (b == std::string_view::npos) return {};
+  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
+}
+}  // namespace
+
+bool split(std::string_view text, std::vector<std::string>& out, Spaces spaces) {
+  const bool trim = spaces == Spaces::kTrim;
   out.clear();
   std::string field;
-  bool quoted = false;
+  bool quoted = false, was_quoted = false;
+  auto finish = [&] {
+    out.push_back(trim && !was_quoted ? std::string(trimmed(field)) : std::move(field));
+    field.clear();
+    was_quoted = false;
+  };
   for (std::size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
     if (quoted) {
@@ -376,16 +390,16 @@ bool split(std::string_view text, std::vector<std::string>& out) {
       } else {
         field += c;
       }
-    } else if (c == '"') {
-      quoted = true;
+    } else if (c == '"' && (!trim || trimmed(field).empty())) {
+      quoted = was_quoted = true;
+      if (trim) field.clear();
     } else if (c == ',') {
-      out.push_back(std::move(field));
-      field.clear();
+      finish();
     } else {
       field += c;
     }
   }
-  out.push_back(std::move(field));
+  finish();
   return !quoted;
 }
 

@@ -21,9 +21,13 @@
 
 namespace msg = exodaq::msg;
 using exodaq::mono_now_ns;
-using exodaq::wall_now_us;
 
 namespace {
+
+// CLOCK_REALTIME in us since the Unix epoch (LCM's utime).
+std::int64_t wall_now_us() {
+  return exodaq::clock_ns(CLOCK_REALTIME) / 1000;
+}
 
 template <typename T>
 std::vector<char> encode(const T& m) {
@@ -359,6 +363,18 @@ TEST(CsvSchema, QuotesOnlyWhenNeededAndSplitsBack) {
   ASSERT_TRUE(msg::csv::split("1,\"x,y\",,\"say \"\"hi\"\"\"", back));
   EXPECT_EQ(back, (std::vector<std::string>{"1", "x,y", "", "say \"hi\""}));
   EXPECT_FALSE(msg::csv::split("\"open", back));
+}
+
+// Spaces::kTrim (motion-capture exports, calibration inputs): spaces around an
+// unquoted value go, a quoted value keeps its own, a quote inside a value is a
+// character; kKeep keeps every space as line() would have written it.
+TEST(CsvSchema, TrimModeDropsSpacesAroundUnquotedValuesOnly) {
+  std::vector<std::string> v;
+  ASSERT_TRUE(msg::csv::split(" 1 ,\t\" a, b \", 2\"in ,", v, msg::csv::Spaces::kTrim));
+  EXPECT_EQ(v, (std::vector<std::string>{"1", " a, b ", "2\"in", ""}));
+  ASSERT_TRUE(msg::csv::split(" 1 , 2", v));
+  EXPECT_EQ(v, (std::vector<std::string>{" 1 ", " 2"}));
+  EXPECT_FALSE(msg::csv::split("1, \"open", v, msg::csv::Spaces::kTrim));
 }
 
 // Strings from the network in a log line or on a terminal (issue 25.10: a

@@ -11,6 +11,7 @@
 #include "exodaq/drivers/sim_backend.hpp"
 #include "matrix_checks.hpp"
 #include "scenario.hpp"
+#include "source_sections.hpp"
 
 using exodaq::joint_state_t;
 using exodaq::palm_pose_t;
@@ -113,7 +114,7 @@ TEST(SimScenario, HomingOutsideTheLimitsIsRejected) {
 
 TEST(SimScenario, CounterGlitchIsFlaggedUntilTheNextIndexThenReHomed) {
   auto cfg = sim_config();
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(fault(SimFault::Kind::kCountOffset, 12.0, 0.0, 0, 1000));
   const auto r = run_scenario(cfg, 30.0);
   const std::int64_t at =
@@ -145,7 +146,7 @@ TEST(SimScenario, CounterGlitchIsFlaggedUntilTheNextIndexThenReHomed) {
 TEST(SimScenario, IndexDriftOfFiveCountsIsLostCountsAtTheNextIndex) {
   auto cfg = sim_config();
   // Five counts lost one per cycle: each step is plausible, only the index can tell.
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(fault(SimFault::Kind::kCountRamp, 12.0, 0.0, 2, -5));
   const auto r = run_scenario(cfg, 30.0);
   const auto& s = r.last_status();
@@ -170,7 +171,7 @@ TEST(SimScenario, IndexDriftOfFiveCountsIsLostCountsAtTheNextIndex) {
 
 TEST(SimScenario, FiftyMillisecondsOfSilenceIsMissingStaleThenRecovers) {
   auto cfg = sim_config();
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(fault(SimFault::Kind::kSilence, 12.0, 0.050));
   const auto r = run_scenario(cfg, 16.0);
   const auto& s = r.last_status();
@@ -199,7 +200,7 @@ TEST(SimScenario, FiftyMillisecondsOfSilenceIsMissingStaleThenRecovers) {
 
 TEST(SimScenario, TwoSecondsOfSilenceIsAFaultThenRecoversWithoutReHoming) {
   auto cfg = sim_config();
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(fault(SimFault::Kind::kSilence, 12.0, 2.0));
   const auto r = run_scenario(cfg, 18.0);
   const auto& s = r.last_status();
@@ -217,7 +218,7 @@ TEST(SimScenario, TenPercentFrameLossIsCountedAndFlaggedCycleByCycle) {
   auto cfg = sim_config();
   SimFault f = fault(SimFault::Kind::kDrop, 12.0, 3.0);
   f.percent = 10.0;
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(f);
   const auto r = run_scenario(cfg, 16.0);
   const auto& s = r.last_status();
@@ -235,7 +236,7 @@ TEST(SimScenario, TenPercentFrameLossIsCountedAndFlaggedCycleByCycle) {
 
 TEST(SimScenario, LostCountsBFrameIsAPartialSample) {
   auto cfg = sim_config();
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(fault(SimFault::Kind::kPartial, 12.0, 0.1));
   const auto r = run_scenario(cfg, 14.0);
   EXPECT_EQ(count_sample_flag(r, joint_state_t::SAMPLE_PARTIAL), 100);
@@ -252,7 +253,7 @@ TEST(SimScenario, LostCountsBFrameIsAPartialSample) {
 
 TEST(SimScenario, DuplicatedFramesAreDroppedCountedAndFlagged) {
   auto cfg = sim_config();
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(fault(SimFault::Kind::kDuplicate, 12.0, 0.1));
   const auto r = run_scenario(cfg, 14.0);
   EXPECT_EQ(r.last_status().duplicates, 100);
@@ -266,7 +267,7 @@ TEST(SimScenario, BoardErrorBitsInvalidateUntilTheHeartbeatClears) {
   auto cfg = sim_config();
   SimFault f = fault(SimFault::Kind::kBoardError, 12.0, 0.5);
   f.error_bits = 0x01;  // quadrature error
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(f);
   const auto r = run_scenario(cfg, 15.0);
   // Heartbeats come every 100 ms: the error shows from the first heartbeat in
@@ -289,7 +290,7 @@ TEST(SimScenario, AJointDrivenBeyondItsLimitIsOutOfRangeWhileThere) {
   // The elbow (joint 5) is pushed 900 counts (32 deg) up and back over 2 s,
   // past its 8.1 deg limit + 2 deg margin: on the hand-made curves, whose
   // elbow is near its upper limit at 12 s.
-  auto& rig = exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim");
+  auto& rig = exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim");
   rig.motion = "curves";
   rig.faults.push_back(fault(SimFault::Kind::kExcursion, 12.0, 2.0, 4, 900));
   const auto r = run_scenario(cfg, 16.0);
@@ -315,7 +316,7 @@ TEST(SimScenario, AJointDrivenBeyondItsLimitIsOutOfRangeWhileThere) {
 TEST(SimScenario, AStuckChannelIsCaughtWhenItResumes) {
   auto cfg = sim_config();
   // On the hand-made curves: joint 3 moves while its counter is frozen.
-  auto& rig = exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim");
+  auto& rig = exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim");
   rig.motion = "curves";
   rig.faults.push_back(fault(SimFault::Kind::kStuck, 12.0, 1.0, 2));
   const auto r = run_scenario(cfg, 30.0);

@@ -418,9 +418,9 @@ void Recording::close() {
   log_.reset();
 }
 
-// Totals over every run's per-cycle streams.
-struct Totals {
-  std::int64_t cycles = 0;
+// The loss counts that each stream's tally and the summary's totals both
+// give, under the same keys (docs/replay.md "Recording").
+struct Loss {
   std::int64_t missing = 0;
   std::int64_t skipped = 0;
   std::int64_t failed = 0;
@@ -428,17 +428,28 @@ struct Totals {
   std::int64_t repeated = 0;
 };
 
+JsonObject& add_loss(JsonObject& j, const Loss& l) {
+  return j.add("missing", std::to_string(l.missing))
+      .add("skipped_by_daemon", std::to_string(l.skipped))
+      .add("daemon_publish_failures", std::to_string(l.failed))
+      .add("lost", std::to_string(l.lost))
+      .add("repeated", std::to_string(l.repeated));
+}
+
+// Totals over every run's per-cycle streams: cycles and holes from
+// joint_state_t, losses and repeats from all three.
+struct Totals {
+  std::int64_t cycles = 0;
+  Loss loss;
+};
+
 JsonObject tally_json(const msg::SeqTally& t) {
   JsonObject j;
   j.add("received", std::to_string(t.received))
       .add("first_seq", std::to_string(t.first))
-      .add("last_seq", std::to_string(t.last))
-      .add("missing", std::to_string(t.missing))
-      .add("skipped_by_daemon", std::to_string(t.unpublished))
-      .add("daemon_publish_failures", std::to_string(t.failed))
-      .add("lost", std::to_string(t.lost))
+      .add("last_seq", std::to_string(t.last));
+  add_loss(j, {t.missing, t.unpublished, t.failed, t.lost, t.repeated})
       .add("lost_after_last_status", std::to_string(t.unconfirmed))
-      .add("repeated", std::to_string(t.repeated))
       .add("out_of_order", std::to_string(t.late));
   return j;
 }
@@ -531,12 +542,12 @@ int report(const RecordOptions& o, const Setup& s, const record::Receiver& rx,
     const msg::SeqTally palms = r.account.tally(msg::Kind::kPalmPose);
     const msg::SeqTally raws = r.account.tally(msg::Kind::kEncoderRaw);
     total.cycles += joints.received;
-    total.missing += joints.missing;
-    total.skipped += joints.unpublished;
-    total.failed += joints.failed;
+    total.loss.missing += joints.missing;
+    total.loss.skipped += joints.unpublished;
+    total.loss.failed += joints.failed;
     for (const auto* t : {&joints, &palms, &raws}) {
-      total.lost += t->lost;
-      total.repeated += t->repeated;
+      total.loss.lost += t->lost;
+      total.loss.repeated += t->repeated;
     }
     JsonObject j;
     j.add("prefix", json_string(r.prefix)).add("run_id", json_string(msg::run_id_text(r.run_id)));
@@ -575,7 +586,7 @@ int report(const RecordOptions& o, const Setup& s, const record::Receiver& rx,
     lines.push_back(line);
   }
   const std::int64_t recorder_lost = st.kernel_drops + st.memory_drops;
-  const bool complete = total.lost == 0 && recorder_lost == 0 && rec.incomplete == 0 &&
+  const bool complete = total.loss.lost == 0 && recorder_lost == 0 && rec.incomplete == 0 &&
                         rec.write_error.empty() && rec.events > 0;
 
   std::vector<JsonObject> files;
@@ -601,12 +612,8 @@ int report(const RecordOptions& o, const Setup& s, const record::Receiver& rx,
       .add("events", std::to_string(rec.events))
       .add("first_utime", std::to_string(rec.first_ns / 1000))
       .add("last_utime", std::to_string(rec.last_ns / 1000))
-      .add("cycles", std::to_string(total.cycles))
-      .add("missing", std::to_string(total.missing))
-      .add("skipped_by_daemon", std::to_string(total.skipped))
-      .add("daemon_publish_failures", std::to_string(total.failed))
-      .add("lost", std::to_string(total.lost))
-      .add("repeated", std::to_string(total.repeated))
+      .add("cycles", std::to_string(total.cycles));
+  add_loss(j, total.loss)
       .add("datagrams", std::to_string(st.datagrams))
       .add("kernel_drops", std::to_string(st.kernel_drops))
       .add("memory_drops", std::to_string(st.memory_drops))
@@ -650,7 +657,7 @@ int report(const RecordOptions& o, const Setup& s, const record::Receiver& rx,
                 "'): is the daemon running, with this lcm.url?");
   }
   if (!complete && rec.events > 0) {
-    print_error("INCOMPLETE: " + std::to_string(total.lost) +
+    print_error("INCOMPLETE: " + std::to_string(total.loss.lost) +
                 " messages of cycles the daemon published lost on the way, " +
                 std::to_string(st.kernel_drops) +
                 " datagrams dropped by the kernel at the "

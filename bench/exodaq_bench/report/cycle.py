@@ -65,7 +65,7 @@ def allocations(c):
             f"`tests/support/alloc_counter.cpp`) on the loop thread over the {c['cycles']} timed cycles, "
             f"{c['allocations_process']} in",
             "the whole process; `BM_Cycle` counts the same (`allocs_per_cycle`). With the threads running",
-            "(loop, publisher, clock monitor), `tests/daemon/test_acquisition.cpp`",
+            "(loop, publisher, clock monitor), `tests/core/test_acquisition.cpp`",
             "`Acquisition.ThreadedLoopAllocatesNothingAfterStartUp` checks 0 allocations in the whole",
             "process over 10 000 cycles after start-up; that test and this count are the heap-allocation",
             "figure for the resources below (the daemon binary itself is not instrumented).\n",

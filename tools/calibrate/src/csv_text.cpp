@@ -11,6 +11,7 @@
 
 #include "exodaq/common/files.hpp"
 #include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/messages/csv.hpp"
 
 namespace exodaq::calibration::detail {
 
@@ -148,31 +149,7 @@ bool next_row(LineReader& in, std::string& line, std::vector<std::string>& field
 
 std::vector<std::string> split_fields(std::string_view line) {
   std::vector<std::string> out;
-  std::string field;
-  bool quoted = false, was_quoted = false;
-  for (std::size_t i = 0; i < line.size(); ++i) {
-    const char c = line[i];
-    if (quoted) {
-      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
-        field += '"';
-        ++i;
-      } else if (c == '"') {
-        quoted = false;
-      } else {
-        field += c;
-      }
-    } else if (c == '"' && trim(field).empty()) {
-      quoted = was_quoted = true;
-      field.clear();
-    } else if (c == ',') {
-      out.push_back(was_quoted ? field : trim(field));
-      field.clear();
-      was_quoted = false;
-    } else {
-      field += c;
-    }
-  }
-  out.push_back(was_quoted ? field : trim(field));
+  msg::csv::split(line, out, msg::csv::Spaces::kTrim);
   return out;
 }
 

@@ -56,6 +56,7 @@ std::string trim(std::string_view s);
 bool next_row(LineReader& in, std::string& line, std::vector<std::string>& fields);
 // Comma-separated fields, trimmed; "double quoted" fields may hold commas
 // ("" is a quote inside them). A line ending in ',' has an empty last field.
+// msg::csv::split with Spaces::kTrim: the project's one CSV splitter.
 std::vector<std::string> split_fields(std::string_view line);
 
 // Integer / finite number of a field; errors name the file, line and column.

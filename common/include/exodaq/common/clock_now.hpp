@@ -20,11 +20,6 @@ inline std::int64_t mono_now_ns() noexcept {
   return clock_ns(CLOCK_MONOTONIC);
 }
 
-// CLOCK_REALTIME, us since the Unix epoch (LCM's utime).
-inline std::int64_t wall_now_us() noexcept {
-  return clock_ns(CLOCK_REALTIME) / 1000;
-}
-
 // Sleeps until CLOCK_MONOTONIC reaches mono_ns (an absolute deadline: no
 // drift from the time spent before the call). A signal resumes the sleep,
 // unless `stop` is given and set (a Ctrl-C handler ends a paced loop at once).

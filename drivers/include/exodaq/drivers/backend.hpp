@@ -54,17 +54,6 @@ struct SourceOptions {
   }
 };
 
-// A private, editable copy of a backend's section (its defaults when the file
-// has none), for tools and tests that adjust a loaded configuration.
-template <typename T>
-T& edit_section(SourceOptions& options, const std::string& name) {
-  auto copy = std::make_shared<T>();
-  if (const T* current = options.section_as<T>(name)) *copy = *current;
-  T& ref = *copy;
-  options.sections[name] = std::move(copy);
-  return ref;
-}
-
 // "{backend: sim, seed: 1, ...}": the selected backend and its settings.
 std::string describe(const SourceOptions& options);
 

@@ -57,8 +57,13 @@ std::string number(double v);
 std::string escape(std::string_view v);
 // A whole line, without the line break.
 std::string line(const std::vector<std::string>& values);
+// How split() treats spaces around a value. kKeep: values as written (what
+// line() wrote). kTrim: spaces and tabs around an unquoted value are dropped
+// and a quote opens a quoted value only at its start (motion-capture exports
+// and hand-written calibration inputs write "1, 2, 3").
+enum class Spaces { kKeep, kTrim };
 // Splits one line (no line break) into its values, undoing escape(); false
 // when a quoted value is not closed.
-bool split(std::string_view line, std::vector<std::string>& out);
+bool split(std::string_view line, std::vector<std::string>& out, Spaces spaces = Spaces::kKeep);
 
 }  // namespace exodaq::msg::csv
