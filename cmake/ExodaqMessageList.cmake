@@ -45,7 +45,7 @@ function(exodaq_message_list var)
     set(per_cycle ${CMAKE_MATCH_4})
     string(REPLACE " " ";" aliases "${CMAKE_MATCH_5}")
     string(REGEX REPLACE "_t$" "" short ${type})
-    # Every name a user may type for a kind (msg::parse_kind) is one kind's only.
+    # Every name a user may type for a kind (messages::parse_kind) is one kind's only.
     foreach(name ${kind} ${type} ${short} ${channel} ${aliases})
       string(TOUPPER ${name} upper)
       if(upper IN_LIST seen)

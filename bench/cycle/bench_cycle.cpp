@@ -30,10 +30,10 @@
 
 #include "alloc_counter.hpp"
 #include "exodaq/common/clock_now.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
 #include "exodaq/drivers/source_factory.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 using namespace exodaq;
 
@@ -42,7 +42,7 @@ namespace {
 // Counts what the publisher hands over; allocates nothing.
 class CountingSink final : public core::MessageSink {
  public:
-  std::array<std::int64_t, exodaq::msg::kKindCount> counts{};
+  std::array<std::int64_t, exodaq::messages::kKindCount> counts{};
   std::int64_t bytes = 0;
   bool publish(const std::string&, const core::OutgoingMessage& msg) noexcept override {
     ++counts[static_cast<std::size_t>(msg.channel)];
@@ -51,13 +51,13 @@ class CountingSink final : public core::MessageSink {
   }
 };
 
-config::ServiceConfig sim_config() {
-  return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+settings::ServiceConfig sim_config() {
+  return settings::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
 // The daemon's wiring (build_acquisition) with a counting sink instead of LCM.
 struct Rig {
-  config::ServiceConfig cfg = sim_config();
+  settings::ServiceConfig cfg = sim_config();
   CountingSink* sink = nullptr;
   std::unique_ptr<core::Acquisition> acq;
   std::int64_t period_ns = 0;
@@ -126,7 +126,7 @@ BENCHMARK(BM_Cycle);
 // part of BM_Cycle that a real rig replaces with reading SocketCAN.
 void BM_SimSourceRead(benchmark::State& state) {
   const auto cfg = sim_config();
-  auto src = drivers::make_source(cfg.source, config::make_source_context(cfg));
+  auto src = drivers::make_source(cfg.source, settings::make_source_context(cfg));
   src->start();
   drivers::EncoderSample sample;
   drivers::CycleTime t;
@@ -203,7 +203,7 @@ std::vector<std::int64_t> time_source_reads(const Rig& rig, std::int64_t warmup,
                                             std::int64_t cycles) {
   std::vector<std::int64_t> source_read;
   source_read.reserve(static_cast<std::size_t>(cycles));
-  auto src = drivers::make_source(rig.cfg.source, config::make_source_context(rig.cfg));
+  auto src = drivers::make_source(rig.cfg.source, settings::make_source_context(rig.cfg));
   src->start();
   drivers::EncoderSample sample;
   drivers::CycleTime t;

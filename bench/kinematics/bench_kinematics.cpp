@@ -17,26 +17,26 @@
 #include <random>
 #include <vector>
 
-#include "exodaq/config/model_file.hpp"
 #include "exodaq/kinematics/ik.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
 #include "exodaq/kinematics/trajectory.hpp"
+#include "exodaq/settings/model_file.hpp"
 
 namespace {
 
-using exodaq::kin::JointVector;
+using exodaq::kinematics::JointVector;
 
 struct Fixture {
-  exodaq::config::KinematicModel model;
+  exodaq::settings::KinematicModel model;
   KDL::Chain kdl;
   std::vector<JointVector> qs;
   std::vector<KDL::JntArray> qs_kdl;
-  std::vector<exodaq::kin::Pose> targets;  // palm poses of qs
+  std::vector<exodaq::kinematics::Pose> targets;  // palm poses of qs
   std::vector<KDL::Frame> targets_kdl;
 
   Fixture()
-      : model(exodaq::config::load_model_file(std::string(EXODAQ_SOURCE_DIR) +
-                                              "/config/models/macaque_exo.yaml")) {
+      : model(exodaq::settings::load_model_file(std::string(EXODAQ_SOURCE_DIR) +
+                                                "/config/models/macaque_exo.yaml")) {
     for (const auto& j : model.chain.joints()) {
       kdl.addSegment(KDL::Segment(j.name, KDL::Joint(KDL::Joint::RotZ),
                                   KDL::Frame::DH(j.dh.a, j.dh.alpha, j.dh.d, j.dh.theta_offset)));
@@ -70,7 +70,7 @@ void BM_PalmFk_Exodaq(benchmark::State& state) {
   const auto& f = fixture();
   std::size_t k = 0;
   for (auto _ : state) {
-    exodaq::kin::Pose p = f.model.chain.palm(f.qs[k++ & 1023]);
+    exodaq::kinematics::Pose p = f.model.chain.palm(f.qs[k++ & 1023]);
     benchmark::DoNotOptimize(p);
   }
 }
@@ -89,12 +89,12 @@ void BM_PalmFk_Kdl(benchmark::State& state) {
 // Palm pose, 6x6 palm Jacobian and the positional manipulability sqrt(det(Jv Jv^T)).
 void BM_FkJacManip_Exodaq(benchmark::State& state) {
   const auto& f = fixture();
-  exodaq::kin::Pose p;
-  exodaq::kin::Jacobian J;
+  exodaq::kinematics::Pose p;
+  exodaq::kinematics::Jacobian J;
   std::size_t k = 0;
   for (auto _ : state) {
     f.model.chain.palm_and_jacobian(f.qs[k++ & 1023], p, J);
-    double w = exodaq::kin::manipulability(J, exodaq::kin::kLinearRows);
+    double w = exodaq::kinematics::manipulability(J, exodaq::kinematics::kLinearRows);
     benchmark::DoNotOptimize(p);
     benchmark::DoNotOptimize(w);
   }
@@ -121,10 +121,10 @@ void BM_FkJacManip_Kdl(benchmark::State& state) {
 // What the daemon runs every cycle: palm pose + quaternion, elbow, shoulder manipulability.
 void BM_EvaluateRig_Exodaq(benchmark::State& state) {
   const auto& f = fixture();
-  exodaq::kin::RigPose out;
+  exodaq::kinematics::RigPose out;
   std::size_t k = 0;
   for (auto _ : state) {
-    exodaq::kin::evaluate_rig(f.model.chain, f.model.rig, f.qs[k++ & 1023], out);
+    exodaq::kinematics::evaluate_rig(f.model.chain, f.model.rig, f.qs[k++ & 1023], out);
     benchmark::DoNotOptimize(out);
   }
 }
@@ -138,9 +138,9 @@ struct IkOutcome {
   bool in_limits = false;
 };
 
-IkOutcome judge(const exodaq::kin::JointVector& q, const exodaq::kin::Pose& target) {
+IkOutcome judge(const exodaq::kinematics::JointVector& q, const exodaq::kinematics::Pose& target) {
   const auto& f = fixture();
-  const exodaq::kin::Pose p = f.model.chain.palm(q);
+  const exodaq::kinematics::Pose p = f.model.chain.palm(q);
   IkOutcome o;
   o.reached = (p.translation() - target.translation()).norm() <= kIkTolerance &&
               Eigen::AngleAxisd(p.linear() * target.linear().transpose()).angle() <= kIkTolerance;
@@ -226,8 +226,8 @@ void BM_Ik_Kdl_Lma_FineEpsilon(benchmark::State& state) {
 // One solution from the same seed, like LMA (and within the limits).
 void BM_Ik_Exodaq_Nearest(benchmark::State& state) {
   const auto& f = fixture();
-  exodaq::kin::IkSolver ik(f.model.chain, f.model.rig);
-  exodaq::kin::IkSolution s;
+  exodaq::kinematics::IkSolver ik(f.model.chain, f.model.rig);
+  exodaq::kinematics::IkSolution s;
   static const Rates rates = rates_of([&](std::size_t k) {
     if (!ik.solve_nearest(f.targets[k], f.model.home_posture, s)) return IkOutcome{};
     return judge(s.q, f.targets[k]);
@@ -244,10 +244,10 @@ void BM_Ik_Exodaq_Nearest(benchmark::State& state) {
 // The same without the closed form: Levenberg-Marquardt only.
 void BM_Ik_Exodaq_NearestNumerical(benchmark::State& state) {
   const auto& f = fixture();
-  exodaq::kin::IkOptions o;
+  exodaq::kinematics::IkOptions o;
   o.use_analytical = false;
-  exodaq::kin::IkSolver ik(f.model.chain, f.model.rig, o);
-  exodaq::kin::IkSolution s;
+  exodaq::kinematics::IkSolver ik(f.model.chain, f.model.rig, o);
+  exodaq::kinematics::IkSolution s;
   static const Rates rates = rates_of([&](std::size_t k) {
     if (!ik.solve_nearest(f.targets[k], f.model.home_posture, s)) return IkOutcome{};
     return judge(s.q, f.targets[k]);
@@ -264,7 +264,7 @@ void BM_Ik_Exodaq_NearestNumerical(benchmark::State& state) {
 // Closed form with joint 1 given (the target posture's azimuth): every solution.
 void BM_Ik_Exodaq_AtAzimuth(benchmark::State& state) {
   const auto& f = fixture();
-  exodaq::kin::IkSolver ik(f.model.chain, f.model.rig);
+  exodaq::kinematics::IkSolver ik(f.model.chain, f.model.rig);
   static const Rates rates = rates_of([&](std::size_t k) {
     const auto& r = ik.solve_fixed(f.targets[k], f.qs[k][0]);
     return r.solutions.empty() ? IkOutcome{} : judge(r.solutions[0].q, f.targets[k]);
@@ -281,7 +281,7 @@ void BM_Ik_Exodaq_AtAzimuth(benchmark::State& state) {
 // Every branch of solutions within the limits (the sweep over joint 1).
 void BM_Ik_Exodaq_AllBranches(benchmark::State& state) {
   const auto& f = fixture();
-  exodaq::kin::IkSolver ik(f.model.chain, f.model.rig);
+  exodaq::kinematics::IkSolver ik(f.model.chain, f.model.rig);
   static const Rates rates = rates_of([&](std::size_t k) {
     const auto& r = ik.solve(f.targets[k]);
     IkOutcome all{!r.solutions.empty(), !r.solutions.empty()};
@@ -304,42 +304,42 @@ void BM_Ik_Exodaq_AllBranches(benchmark::State& state) {
 
 // Seed 001 Table III speeds for joints 1-4, the configs' 5.38 and 3.0 rad/s for
 // 5-6, 4 rad/s^2 everywhere; eight via points from the fixture's postures.
-exodaq::kin::JointBounds trajectory_bounds() {
-  exodaq::kin::JointBounds b;
+exodaq::kinematics::JointBounds trajectory_bounds() {
+  exodaq::kinematics::JointBounds b;
   b.max_speed.resize(6);
   b.max_speed << 0.64, 1.06, 1.80, 5.38, 5.38, 3.0;
   b.max_acceleration = JointVector::Constant(6, 4.0);
   return b;
 }
 
-void trajectory_plan(benchmark::State& state, exodaq::kin::SegmentShape shape) {
+void trajectory_plan(benchmark::State& state, exodaq::kinematics::SegmentShape shape) {
   const auto& f = fixture();
-  const exodaq::kin::JointBounds b = trajectory_bounds();
-  exodaq::kin::TrajectoryOptions o;
+  const exodaq::kinematics::JointBounds b = trajectory_bounds();
+  exodaq::kinematics::TrajectoryOptions o;
   o.shape = shape;
   std::size_t k = 0;
   for (auto _ : state) {
     const std::vector<JointVector> via(f.qs.begin() + static_cast<std::ptrdiff_t>(k),
                                        f.qs.begin() + static_cast<std::ptrdiff_t>(k + 8));
     k = (k + 8) & 1015;
-    exodaq::kin::JointTrajectory t(via, b, o);
+    exodaq::kinematics::JointTrajectory t(via, b, o);
     benchmark::DoNotOptimize(t.duration());
   }
 }
 
 void BM_TrajectoryPlan8_Cubic(benchmark::State& state) {
-  trajectory_plan(state, exodaq::kin::SegmentShape::kCubic);
+  trajectory_plan(state, exodaq::kinematics::SegmentShape::kCubic);
 }
 void BM_TrajectoryPlan8_Quintic(benchmark::State& state) {
-  trajectory_plan(state, exodaq::kin::SegmentShape::kQuintic);
+  trajectory_plan(state, exodaq::kinematics::SegmentShape::kQuintic);
 }
 
 // One sample (q, qd, qdd of six joints) of a 64-via-point quintic trajectory.
 void BM_TrajectorySample(benchmark::State& state) {
   const auto& f = fixture();
   const std::vector<JointVector> via(f.qs.begin(), f.qs.begin() + 64);
-  const exodaq::kin::JointTrajectory t(via, trajectory_bounds());
-  exodaq::kin::TrajectorySample s;
+  const exodaq::kinematics::JointTrajectory t(via, trajectory_bounds());
+  exodaq::kinematics::TrajectorySample s;
   double time = 0.0;
   for (auto _ : state) {
     t.sample(time, s);

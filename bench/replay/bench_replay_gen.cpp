@@ -7,13 +7,13 @@
 #include <cstdio>
 #include <vector>
 
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/raw_sample.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"bench_replay_gen: a simulated lcm-logger log for the replay benchmark"};
@@ -25,17 +25,17 @@ int main(int argc, char** argv) {
   app.add_option("--cycles", cycles, "cycles (1 kHz: 600000 = 10 min)");
   CLI11_PARSE(app, argc, argv);
 
-  const exodaq::config::ServiceConfig cfg = exodaq::config::load_service_config(config);
-  const auto ctx = exodaq::config::make_source_context(cfg);
+  const exodaq::settings::ServiceConfig cfg = exodaq::settings::load_service_config(config);
+  const auto ctx = exodaq::settings::make_source_context(cfg);
   exodaq::drivers::sim::SimOptions opt = exodaq::drivers::sim_options_from(cfg.source, ctx);
   opt.start_mono_ns = 1'000'000'000;
   opt.wall_offset_ns = 1'700'000'000'000'000'000LL;
   exodaq::drivers::SimSource sim(opt);
   sim.start();
 
-  namespace msg = exodaq::msg;
-  msg::LogWriter log(out);
-  const std::string channel = msg::channel_name(cfg.lcm.prefix, msg::Kind::kEncoderRaw);
+  namespace messages = exodaq::messages;
+  messages::LogWriter log(out);
+  const std::string channel = messages::channel_name(cfg.lcm.prefix, messages::Kind::kEncoderRaw);
   exodaq::encoder_raw_t raw{};
   raw.run_id = 0x5eed;
   std::vector<std::uint8_t> buf(4096);
@@ -47,7 +47,7 @@ int main(int argc, char** argv) {
     raw.utime = s.wall_ns / 1000;
     raw.mono_ns = s.mono_ns;
     raw.seq = k;
-    msg::to_encoder_raw(s, raw);
+    messages::to_encoder_raw(s, raw);
     const int n = raw.encode(buf.data(), 0, static_cast<int>(buf.size()));
     log.write(channel, raw.utime, buf.data(), static_cast<std::size_t>(n));
   }

@@ -1,4 +1,4 @@
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -12,7 +12,7 @@
 
 #include "exodaq/common/files.hpp"
 
-namespace exodaq::config {
+namespace exodaq {
 
 namespace {
 std::string format(const std::string& file, int line, const std::string& what) {
@@ -307,4 +307,4 @@ void MapReader::finish() const {
   }
 }
 
-}  // namespace exodaq::config
+}  // namespace exodaq

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 
 namespace exodaq::core {
@@ -30,22 +30,22 @@ std::string keep_start(const std::string& s, std::size_t max_bytes) {
   return s.substr(0, to) + "...";
 }
 
-ConfigFiles config_files(const config::ServiceConfig& c) {
+ConfigFiles config_files(const settings::ServiceConfig& c) {
   ConfigFiles f;
   f.config_path = keep_end(c.file, ConfigFiles::kMaxPathBytes);
   f.config_sha256 = c.config_sha256.substr(0, ConfigFiles::kMaxHashBytes);
   f.calibration_path = keep_end(c.calibration_path, ConfigFiles::kMaxPathBytes);
   f.calibration_sha256 = c.calibration_sha256.substr(0, ConfigFiles::kMaxHashBytes);
-  f.calibration_provenance = keep_start(config::provenance_text(c.calibration.provenance),
+  f.calibration_provenance = keep_start(settings::provenance_text(c.calibration.provenance),
                                         ConfigFiles::kMaxProvenanceBytes);
   return f;
 }
 }  // namespace
 
-std::unique_ptr<PipelineConfig> make_pipeline_config(const config::ServiceConfig& c) {
+std::unique_ptr<PipelineConfig> make_pipeline_config(const settings::ServiceConfig& c) {
   auto p = std::make_unique<PipelineConfig>();
   p->files = config_files(c);
-  p->chain = config::apply_calibration(c.model.chain, c.calibration);
+  p->chain = settings::apply_calibration(c.model.chain, c.calibration);
   p->rig = c.model.rig;
   const auto& joints = c.model.chain.joints();
   for (int i = 0; i < kJointCount; ++i) {
@@ -59,9 +59,9 @@ std::unique_ptr<PipelineConfig> make_pipeline_config(const config::ServiceConfig
     t.home_rad = c.model.home_posture.size() > i ? c.model.home_posture[i] : 0.0;
     t.lower_rad = joints[static_cast<std::size_t>(i)].limits.lower;
     t.upper_rad = joints[static_cast<std::size_t>(i)].limits.upper;
-    t.limit_margin_rad = c.encoders.limit_margin_deg * config::kDegToRad;
+    t.limit_margin_rad = c.encoders.limit_margin_deg * exodaq::kDegToRad;
     t.max_speed_rad_s = e.max_speed_rad_s * c.encoders.speed_margin;
-    t.board_period_ns = config::period_ns(c);
+    t.board_period_ns = settings::period_ns(c);
     t.index_tolerance_counts = c.encoders.index_tolerance_counts;
     t.stale_ns = static_cast<std::int64_t>(c.encoders.stale_ms * 1e6);
     t.fault_hold_ns = static_cast<std::int64_t>(c.encoders.fault_hold_ms * 1e6);
@@ -70,10 +70,10 @@ std::unique_ptr<PipelineConfig> make_pipeline_config(const config::ServiceConfig
   return p;
 }
 
-AcquisitionConfig make_acquisition_config(const config::ServiceConfig& c) {
+AcquisitionConfig make_acquisition_config(const settings::ServiceConfig& c) {
   AcquisitionConfig a;
   a.rig = c.rig;
-  a.period_ns = config::period_ns(c);
+  a.period_ns = settings::period_ns(c);
   a.cpu = c.loop.cpu;
   a.priority = c.loop.priority;
   a.lock_memory = c.loop.lock_memory;
@@ -89,7 +89,7 @@ AcquisitionConfig make_acquisition_config(const config::ServiceConfig& c) {
   return a;
 }
 
-std::unique_ptr<Acquisition> build_acquisition(const config::ServiceConfig& c,
+std::unique_ptr<Acquisition> build_acquisition(const settings::ServiceConfig& c,
                                                AcquisitionOptions o) {
   AcquisitionConfig a = make_acquisition_config(c);
   if (!o.realtime) {
@@ -100,7 +100,7 @@ std::unique_ptr<Acquisition> build_acquisition(const config::ServiceConfig& c,
   a.run_id = o.run_id;
   a.record_lateness_cycles = o.record_lateness_cycles;
   auto source = o.source ? std::move(o.source)
-                         : drivers::make_source(c.source, config::make_source_context(c));
+                         : drivers::make_source(c.source, settings::make_source_context(c));
   auto sink = o.sink ? std::move(o.sink) : make_lcm_sink(c.lcm.url);
   return std::make_unique<Acquisition>(std::move(a), make_pipeline_config(c), std::move(source),
                                        std::move(sink), o.channel_prefix.value_or(c.lcm.prefix),

@@ -10,14 +10,14 @@
 
 namespace exodaq::core {
 
-// The log's and the journal's lower-case form of msg::state_name (the one
+// The log's and the journal's lower-case form of messages::state_name (the one
 // table of state names), made once, without allocating.
 const char* state_name(ServiceState s) noexcept {
   using Name = std::array<char, 24>;
   static const std::array<Name, 8> kLower = [] {
     std::array<Name, 8> out{};
     for (std::size_t i = 0; i < out.size(); ++i) {
-      const std::string_view upper = msg::state_name(static_cast<std::int8_t>(i));
+      const std::string_view upper = messages::state_name(static_cast<std::int8_t>(i));
       for (std::size_t c = 0; c < upper.size() && c + 1 < out[i].size(); ++c)
         out[i][c] = static_cast<char>(std::tolower(static_cast<unsigned char>(upper[c])));
     }
@@ -149,7 +149,7 @@ std::size_t describe_cause(const StateCause& c, std::string_view joint_name, cha
               ll(c.threshold));
       break;
     case StateReason::kBusDown: {
-      const std::string_view bus = msg::bus_state_name(static_cast<std::int8_t>(c.value));
+      const std::string_view bus = messages::bus_state_name(static_cast<std::int8_t>(c.value));
       n = put(out, n, cap, "bus %.*s: no frame can arrive", static_cast<int>(bus.size()),
               bus.data());
       break;
@@ -158,14 +158,14 @@ std::size_t describe_cause(const StateCause& c, std::string_view joint_name, cha
       n = put(out, n, cap, "another run publishes on these channels (threshold: any status heard)");
       break;
     case StateReason::kJointFault:
-      msg::write_joint_flag_names(static_cast<std::int32_t>(c.flags), flags, sizeof flags);
+      messages::write_joint_flag_names(static_cast<std::int32_t>(c.flags), flags, sizeof flags);
       n = put(out, n, cap, "joint %.*s %s", static_cast<int>(joint_name.size()), joint_name.data(),
               flags);
       if (c.value > 1) n = put(out, n, cap, " and %lld more joint(s)", ll(c.value - 1));
       n = put(out, n, cap, " %s (threshold: any fault flag)", window);
       break;
     case StateReason::kSampleFlags:
-      msg::write_sample_flag_names(static_cast<std::int32_t>(c.flags), flags, sizeof flags);
+      messages::write_sample_flag_names(static_cast<std::int32_t>(c.flags), flags, sizeof flags);
       n = put(out, n, cap, "samples flagged %s %s (threshold: any)", flags, window);
       break;
     case StateReason::kOverruns:

@@ -57,7 +57,7 @@ void MessageEncoder::publish(const CycleResult& r, const drivers::EncoderSample&
   publish_encoded(publisher, joint, r.utime_us);
 
   if (publish_raw_) {
-    msg::to_encoder_raw(sample, raw);
+    messages::to_encoder_raw(sample, raw);
     publish_encoded(publisher, raw, r.utime_us);
   }
   publisher.notify();

@@ -45,7 +45,7 @@ void Pipeline::process(const drivers::EncoderSample& sample, std::uint32_t extra
     all_homed = all_homed && r.homed;
     any_fault |= r.flags & (joint_flag::kFaults & ~joint_flag::kUnhomed);
   }
-  kin::evaluate_rig(config_->chain, config_->rig, q_, out.pose);
+  kinematics::evaluate_rig(config_->chain, config_->rig, q_, out.pose);
 
   std::uint32_t reason = 0;
   if (!all_homed) reason |= invalid_reason::kUnhomed;

@@ -95,8 +95,8 @@ Publisher::Publisher(std::unique_ptr<MessageSink> sink, const std::string& prefi
       direct_(sink_->sends_from_loop()),
       slots_(direct_ ? 1 : round_up_pow2(capacity)),
       mask_(slots_.size() - 1) {
-  for (const msg::Kind k : msg::kAllKinds) {
-    channels_[static_cast<std::size_t>(k)] = msg::channel_name(prefix, k);
+  for (const messages::Kind k : messages::kAllKinds) {
+    channels_[static_cast<std::size_t>(k)] = messages::channel_name(prefix, k);
   }
   sem_init(&ready_, 0, 0);
 }

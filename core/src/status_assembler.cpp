@@ -184,7 +184,7 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, const WindowEnd& 
   // Appends what snprintf wrote, never past the buffer (a cut text stays a text).
   const auto add = [&](int written) { n = std::min(n + std::max(written, 0), cap - 1); };
   const auto rest = [&] { return static_cast<std::size_t>(cap - n); };
-  const std::string_view name = msg::state_name(static_cast<std::int8_t>(state));
+  const std::string_view name = messages::state_name(static_cast<std::int8_t>(state));
   add(std::snprintf(text, sizeof(text), "%.*s: ", static_cast<int>(name.size()), name.data()));
   if (cause_.reason != StateReason::kNone) {
     const std::string_view joint =
@@ -202,7 +202,7 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, const WindowEnd& 
                     kJointCount, valid, static_cast<long long>(end.overruns)));
   if (worst_joint >= 0 && cause_.reason != StateReason::kJointFault) {
     char flags[192];
-    msg::write_joint_flag_names(
+    messages::write_joint_flag_names(
         static_cast<std::int32_t>(facts_.joint_flags_or[static_cast<std::size_t>(worst_joint)]),
         flags, sizeof flags);
     add(std::snprintf(text + n, rest(), "; joint %s %s", s.joint_name[worst_joint].c_str(), flags));

@@ -26,15 +26,15 @@
 #include <vector>
 
 #include "exodaq/common/clock_now.hpp"
-#include "exodaq/config/service_config.hpp"
-#include "exodaq/config/setting_classes.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
 #include "exodaq/daemon/instance_guard.hpp"
 #include "exodaq/drivers/backend.hpp"
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/message.hpp"
+#include "exodaq/settings/service_config.hpp"
+#include "exodaq/settings/setting_classes.hpp"
 #include "exodaq/version.hpp"
 #include "log_output.hpp"
 #include "overrun_report.hpp"
@@ -43,10 +43,10 @@
 namespace exodaq::daemon {
 
 using namespace core;  // NOLINT(google-build-using-namespace): the daemon wires the core
-using config::load_service_config;
-using config::LoggingSettings;
-using config::ServiceConfig;
-using config::to_yaml;
+using settings::load_service_config;
+using settings::LoggingSettings;
+using settings::ServiceConfig;
+using settings::to_yaml;
 
 namespace {
 
@@ -122,7 +122,7 @@ class QueuedSink : public spdlog::sinks::base_sink<std::mutex> {
   // The message text, without the journal fields, escaped.
   static std::string text_of(const spdlog::details::log_msg& msg) {
     const std::string_view payload(msg.payload.data(), msg.payload.size());
-    return msg::printable(payload.substr(0, payload.find(kFieldSep)));
+    return messages::printable(payload.substr(0, payload.find(kFieldSep)));
   }
 
  private:
@@ -258,7 +258,7 @@ Logging make_logger(const LoggingSettings& settings, const std::string& level_ov
           return err->write(r.text, give_up);
         });
     std::string rig_text;  // literal in the pattern: '%' doubled
-    for (const char c : msg::printable(rig))
+    for (const char c : messages::printable(rig))
       rig_text += c == '%' ? std::string("%%") : std::string(1, c);
     sink = std::make_shared<StderrSink>(out.output, isatty(STDERR_FILENO) != 0);
     sink->set_pattern("%Y-%m-%d %H:%M:%S.%e [" + rig_text + "] %^%l%$ %v");
@@ -266,7 +266,7 @@ Logging make_logger(const LoggingSettings& settings, const std::string& level_ov
   out.logger = std::make_shared<spdlog::logger>("exodaqd", sink);
   // spdlog's own complaint (a bad format) must not wait on stderr either.
   out.logger->set_error_handler([](const std::string& what) {
-    write_stderr("exodaqd: log error: " + msg::printable(what) + "\n",
+    write_stderr("exodaqd: log error: " + messages::printable(what) + "\n",
                  std::chrono::milliseconds(0));
   });
   spdlog::set_default_logger(out.logger);
@@ -342,7 +342,7 @@ void log_overruns(const OverrunLine& line, ServiceState state, std::int64_t run_
                        {"EXODAQ_OVERRUNS", std::to_string(line.skipped)},
                        {"EXODAQ_LATE_WAKES", std::to_string(line.late_wakes)},
                        {"EXODAQ_WORST_LATENESS_US", fmt::format("{:.1f}", line.worst_lateness_us)},
-                       {"EXODAQ_RUN_ID", msg::run_id_text(run_id)}}));
+                       {"EXODAQ_RUN_ID", messages::run_id_text(run_id)}}));
 }
 
 // Why the state changed, for people (core::describe_cause).
@@ -361,7 +361,7 @@ std::string cause_text(const StateCause& cause, const AcquisitionConfig& ac) {
 void log_event(const LogEvent& e, const AcquisitionConfig& ac, std::int64_t run_id,
                ServiceState state, OverrunReport& overruns) {
   const std::string seq = std::to_string(e.seq);
-  const std::string run = msg::run_id_text(run_id);
+  const std::string run = messages::run_id_text(run_id);
   switch (e.kind) {
     case LogEvent::Kind::kJoint: {
       const auto& name = ac.joint_names[static_cast<std::size_t>(e.joint)];
@@ -441,11 +441,11 @@ void log_event(const LogEvent& e, const AcquisitionConfig& ac, std::int64_t run_
   }
 }
 
-// ", bus ACTIVE", ", bus OFF", ...: the names of msg::bus_state_name, the
+// ", bus ACTIVE", ", bus OFF", ...: the names of messages::bus_state_name, the
 // ones `exodaq status` prints; nothing while the state is unknown.
 std::string bus_state_text(drivers::BusState s) {
   if (s == drivers::BusState::kUnknown) return "";
-  return ", bus " + std::string(msg::bus_state_name(static_cast<std::int8_t>(s)));
+  return ", bus " + std::string(messages::bus_state_name(static_cast<std::int8_t>(s)));
 }
 
 // The state, why, and the homing progress: "homing 4/6", "degraded (OVERRUNS)",
@@ -463,15 +463,15 @@ std::string state_text(const Acquisition& acq) {
 }
 
 // The clock as the policy sees it: under require_sync: ignore it is not checked.
-const char* clock_text(const ClockShared& clock, config::RequireSync policy) {
-  if (policy == config::RequireSync::kIgnore) return "clock not checked";
+const char* clock_text(const ClockShared& clock, settings::RequireSync policy) {
+  if (policy == settings::RequireSync::kIgnore) return "clock not checked";
   if (!clock.health_valid.load()) return "clock health unknown";
   return clock.synchronised.load() ? "clock synchronised" : "clock UNSYNCHRONISED";
 }
 
 // STATUS= for systemctl status: state and homing, loop rate, drops, clock
 // health under `policy`, and the log lines the output lost.
-std::string status_line(Acquisition& acq, double rate_hz, config::RequireSync policy,
+std::string status_line(Acquisition& acq, double rate_hz, settings::RequireSync policy,
                         std::int64_t log_dropped = 0) {
   const auto stats = acq.source_counters();
   const PublishHealth publish = acq.publisher().health();
@@ -542,7 +542,7 @@ std::string configured_level(const DaemonOptions& options, const ServiceConfig& 
 std::optional<int> load_config(const DaemonOptions& options, ServiceConfig& config) {
   try {
     config = load_service_config(options.config_path);
-  } catch (const config::ConfigError& e) {
+  } catch (const exodaq::ConfigError& e) {
     write_stderr("exodaqd: " + std::string(e.what()) + "\n");
     return 1;
   } catch (const std::exception& e) {
@@ -586,9 +586,9 @@ void shut_down_logging(const Logging& logging) {
 // Why the daemon cannot start: to the log, systemd's STATUS= and stderr.
 void report_start_failure(const std::string& what, const Logging& logging) {
   spdlog::critical("cannot start: {}{}", what, fields({{"EXODAQ_EVENT", "start_failed"}}));
-  notify("STATUS=cannot start: " + msg::printable(what));
+  notify("STATUS=cannot start: " + messages::printable(what));
   shut_down_logging(logging);
-  if (!logging.journal) write_stderr("exodaqd: cannot start: " + msg::printable(what) + "\n");
+  if (!logging.journal) write_stderr("exodaqd: cannot start: " + messages::printable(what) + "\n");
 }
 
 // The channel set claimed for this daemon alone (instance_guard.hpp), or null
@@ -632,13 +632,13 @@ std::unique_ptr<Acquisition> start_acquisition(const ServiceConfig& config,
 }
 
 void log_started(const ServiceConfig& config, std::int64_t run_id) {
-  const std::string run = msg::run_id_text(run_id);
+  const std::string run = messages::run_id_text(run_id);
   spdlog::info(
       "exodaqd {} started: rig {}, source {}, {:.0f} Hz, config {} (sha256 {}), model {}, "
       "calibration {} (sha256 {}; {}), LCM {} prefix '{}', run id {}{}",
       exodaq::kVersion, config.rig, drivers::describe(config.source), config.loop.rate_hz,
       config.file, config.config_sha256, config.model_path, config.calibration_path,
-      config.calibration_sha256, config::provenance_text(config.calibration.provenance),
+      config.calibration_sha256, settings::provenance_text(config.calibration.provenance),
       config.lcm.url, config.lcm.prefix, run,
       fields({{"EXODAQ_EVENT", "started"},
               {"EXODAQ_RIG", config.rig},
@@ -665,8 +665,8 @@ class Supervisor {
   void take_signal();
   void reload();
   struct Changes {
-    std::vector<config::SettingChange> live;     // against the last configuration accepted
-    std::vector<config::SettingChange> restart;  // against the one the loop started with
+    std::vector<settings::SettingChange> live;     // against the last configuration accepted
+    std::vector<settings::SettingChange> restart;  // against the one the loop started with
   };
   Changes changes_to(const ServiceConfig& next) const;
   void log_changes(const ServiceConfig& next, const Changes& changes) const;
@@ -752,7 +752,7 @@ void Supervisor::watch_publishing(std::int64_t now) {
     const std::string f = fields({{"EXODAQ_EVENT", line.event},
                                   {"EXODAQ_STATE", state_name(acq_.state())},
                                   {"EXODAQ_ERRNO", std::to_string(line.error)},
-                                  {"EXODAQ_RUN_ID", msg::run_id_text(acq_.run_id())}});
+                                  {"EXODAQ_RUN_ID", messages::run_id_text(acq_.run_id())}});
     if (line.warning) {
       spdlog::warn("{}{}", line.text, f);
     } else {
@@ -808,7 +808,7 @@ void Supervisor::reload() {
     ServiceConfig next = load_service_config(options_.config_path);
     const Changes changes = changes_to(next);
     std::unique_ptr<PipelineConfig> pipeline = make_pipeline_config(next);
-    pipeline->new_segment = config::starts_new_segment(changes.live);
+    pipeline->new_segment = settings::starts_new_segment(changes.live);
     pipeline->files.restart_pending = !changes.restart.empty();
     if (pipeline->files.restart_pending) pipeline->files.config_sha256.clear();
     acq_.stage_reload(std::move(pipeline), next.clock);
@@ -825,11 +825,11 @@ void Supervisor::reload() {
 
 Supervisor::Changes Supervisor::changes_to(const ServiceConfig& next) const {
   Changes out;
-  for (auto& c : config::compare_settings(config_, next)) {
-    if (c.apply == config::Apply::kLive) out.live.push_back(std::move(c));
+  for (auto& c : settings::compare_settings(config_, next)) {
+    if (c.apply == settings::Apply::kLive) out.live.push_back(std::move(c));
   }
-  for (auto& c : config::compare_settings(started_, next)) {
-    if (c.apply == config::Apply::kRestart) out.restart.push_back(std::move(c));
+  for (auto& c : settings::compare_settings(started_, next)) {
+    if (c.apply == settings::Apply::kRestart) out.restart.push_back(std::move(c));
   }
   return out;
 }
@@ -844,16 +844,16 @@ void Supervisor::log_changes(const ServiceConfig& next, const Changes& changes) 
     spdlog::warn(
         "reload: {} restart-only setting(s) changed, NOT applied until exodaqd restarts: {}; "
         "status_t.config_sha256 is empty until then (no file describes the settings in effect){}",
-        restart.size(), config::describe_changes(restart),
+        restart.size(), settings::describe_changes(restart),
         fields({{"EXODAQ_EVENT", "reload_needs_restart"}}));
   }
   spdlog::info("reload: {} (sha256 {}) accepted, calibration {} (sha256 {}); {} live change(s){}{}",
                next.file, next.config_sha256, next.calibration_path, next.calibration_sha256,
-               live.size(), live.empty() ? "" : ": " + config::describe_changes(live),
+               live.size(), live.empty() ? "" : ": " + settings::describe_changes(live),
                fields({{"EXODAQ_EVENT", "reload_accepted"},
                        {"EXODAQ_CONFIG_SHA256", next.config_sha256},
                        {"EXODAQ_CALIBRATION_SHA256", next.calibration_sha256}}));
-  if (config::starts_new_segment(live)) {
+  if (settings::starts_new_segment(live)) {
     spdlog::info(
         "reload: the calibration or model changed: the first sample with it starts a new segment "
         "(SAMPLE_NEW_SEGMENT){}",
@@ -940,11 +940,13 @@ void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& lo
   const auto source = acq.source_counters();  // as of the final status window
   spdlog::info(
       "stopped after {} cycles ({} overruns, {} publish failures, {} messages published; {} "
-      "samples late, {} caught up after a late wake, {} superseded, {} late SYNCs){}",
+      "samples late, {} caught up after a late wake, {} superseded, {} late SYNCs; {} wakes "
+      "left a backlog to the next){}",
       acq.cycles(), acq.overruns(), acq.publisher().failures() + acq.publisher().ring_drops(),
       acq.publisher().published(), acq.late_samples(), acq.caught_up_samples(),
-      source.superseded_samples, source.late_syncs,
-      fields({{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", msg::run_id_text(acq.run_id())}}));
+      source.superseded_samples, source.late_syncs, acq.backlog_wakes(),
+      fields(
+          {{"EXODAQ_EVENT", "stopped"}, {"EXODAQ_RUN_ID", messages::run_id_text(acq.run_id())}}));
   shut_down_logging(logging);
 }
 

@@ -17,12 +17,12 @@
 #include <string_view>
 
 #include "exodaq/common/clock_now.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/udpm_receiver.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/message.hpp"
 #include "exodaq/messages/subscriber.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 namespace exodaq::daemon {
 
@@ -224,7 +224,7 @@ InstanceLock::~InstanceLock() {
 }
 
 void InstanceLock::record_run_id(std::int64_t run_id) {
-  write_contents(msg::run_id_text(run_id));
+  write_contents(messages::run_id_text(run_id));
 }
 
 void InstanceLock::write_contents(const std::string& run_id_text) {
@@ -245,14 +245,14 @@ int startup_listen_ms(double status_rate_hz) {
 }
 
 ForeignRunListener::ForeignRunListener(const std::string& url, const std::string& prefix)
-    : channel_(msg::channel_name(prefix, msg::Kind::kStatus)) {
+    : channel_(messages::channel_name(prefix, messages::Kind::kStatus)) {
   if (const auto address = core::parse_udpm_url(url)) {
     udpm_ = std::make_unique<core::UdpmChannelReceiver>(*address, url, channel_);
     return;
   }
-  sub_ = std::make_unique<msg::Subscriber>(url);
-  sub_->subscribe(channel_, msg::Kind::kStatus,
-                  [this](const msg::Received& r) { on_status(std::get<status_t>(r.msg)); });
+  sub_ = std::make_unique<messages::Subscriber>(url);
+  sub_->subscribe(channel_, messages::Kind::kStatus,
+                  [this](const messages::Received& r) { on_status(std::get<status_t>(r.msg)); });
 }
 
 // Waits up to timeout_ms and handles what arrived. < 0: the transport failed.
@@ -260,7 +260,7 @@ int ForeignRunListener::handle(int timeout_ms) {
   if (!udpm_) return sub_->handle(timeout_ms);
   const int size = udpm_->receive(timeout_ms);
   if (size <= 0) return size;
-  if (msg::decode_into(status_, udpm_->payload(), static_cast<std::size_t>(size))) {
+  if (messages::decode_into(status_, udpm_->payload(), static_cast<std::size_t>(size))) {
     on_status(status_);
   }
   return 1;
@@ -334,43 +334,43 @@ void ForeignRunListener::on_status(const status_t& status) {
   episode_run_id_ = run_id;
   ++episodes_;
   acq_->set_foreign_run_id(run_id);
-  const std::string rig = status.rig.empty() ? "?" : msg::printable(status.rig);
+  const std::string rig = status.rig.empty() ? "?" : messages::printable(status.rig);
   if (run_id == own) {
     spdlog::error(
         "another publisher on {} uses this daemon's own run id {} ({}; source {}, rig {}): a "
         "replay of this run or a forged stream; every sample is flagged FOREIGN_RUN and the state "
         "is degraded while it is heard (episode {})",
-        channel_, msg::run_id_text(run_id), impostor, msg::printable(status.source), rig,
+        channel_, messages::run_id_text(run_id), impostor, messages::printable(status.source), rig,
         episodes_);
     return;
   }
   spdlog::error(
       "another publisher on {}: run id {} (rig {}) beside this daemon's run {}; every sample "
       "is flagged FOREIGN_RUN and the state is degraded while it is heard (episode {})",
-      channel_, msg::run_id_text(run_id), rig, msg::run_id_text(own), episodes_);
+      channel_, messages::run_id_text(run_id), rig, messages::run_id_text(own), episodes_);
 }
 
 void ForeignRunListener::end_episode_if_quiet() {
   if (episode_run_id_ == 0 || mono_now_ns() - last_foreign_ns_ < kEpisodeEndNs) return;
   acq_->set_foreign_run_id(0);
   spdlog::warn("run id {} no longer heard on {} for {} ms: FOREIGN_RUN cleared",
-               msg::run_id_text(episode_run_id_), channel_, kEpisodeEndNs / 1'000'000);
+               messages::run_id_text(episode_run_id_), channel_, kEpisodeEndNs / 1'000'000);
   episode_run_id_ = 0;
 }
 
-ChannelClaim::ChannelClaim(const config::ServiceConfig& config, const std::string& config_path)
+ChannelClaim::ChannelClaim(const settings::ServiceConfig& config, const std::string& config_path)
     : lock_(lock_path(runtime_directory(), config.lcm.url, config.lcm.prefix),
             InstanceLock::Identity{config.lcm.url, config.lcm.prefix, config_path, config.rig}),
       listener_(config.lcm.url, config.lcm.prefix),
       listened_ms_(startup_listen_ms(config.loop.status_rate_hz)) {
   if (const auto heard = listener_.listen_before_start(listened_ms_)) {
-    throw InstanceConflict("another exodaqd already publishes on LCM " + config.lcm.url +
-                           " with prefix '" + config.lcm.prefix + "': run id " +
-                           msg::run_id_text(heard->run_id) + ", rig " +
-                           (heard->rig.empty() ? "?" : msg::printable(heard->rig)) + " heard on " +
-                           msg::channel_name(config.lcm.prefix, msg::Kind::kStatus) +
-                           " (another host, or a daemon with another runtime directory); stop "
-                           "it, or give this daemon another lcm.prefix or lcm.url");
+    throw InstanceConflict(
+        "another exodaqd already publishes on LCM " + config.lcm.url + " with prefix '" +
+        config.lcm.prefix + "': run id " + messages::run_id_text(heard->run_id) + ", rig " +
+        (heard->rig.empty() ? "?" : messages::printable(heard->rig)) + " heard on " +
+        messages::channel_name(config.lcm.prefix, messages::Kind::kStatus) +
+        " (another host, or a daemon with another runtime directory); stop "
+        "it, or give this daemon another lcm.prefix or lcm.url");
   }
 }
 

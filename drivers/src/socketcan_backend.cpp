@@ -2,13 +2,13 @@
 
 #include <sstream>
 
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 
 namespace exodaq::drivers {
 
 namespace {
 
-void parse_limits(config::MapReader& s, SocketCanSettings& out) {
+void parse_limits(exodaq::MapReader& s, SocketCanSettings& out) {
   out.rcvbuf_bytes = static_cast<int>(s.integer_or("rcvbuf_bytes", out.rcvbuf_bytes));
   if (out.rcvbuf_bytes < 4096)
     s.fail_key("rcvbuf_bytes", "source.socketcan.rcvbuf_bytes must be >= 4096");
@@ -23,8 +23,8 @@ void parse_limits(config::MapReader& s, SocketCanSettings& out) {
   }
 }
 
-std::shared_ptr<const BackendSettings> parse_socketcan(config::MapReader* s,
-                                                       config::MapReader& /*src*/,
+std::shared_ptr<const BackendSettings> parse_socketcan(exodaq::MapReader* s,
+                                                       exodaq::MapReader& /*src*/,
                                                        bool /*selected*/) {
   auto out = std::make_shared<SocketCanSettings>();
   if (s == nullptr) return out;

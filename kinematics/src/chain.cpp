@@ -7,7 +7,7 @@
 
 #include "chain_access.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 namespace {
 
@@ -459,4 +459,4 @@ Eigen::Vector4d quaternion_wxyz(const Eigen::Matrix3d& R) noexcept {
   return out;
 }
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

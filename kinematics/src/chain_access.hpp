@@ -3,7 +3,7 @@
 // evaluation functions and evaluate_rig(). No allocation, no exceptions.
 #include "exodaq/kinematics/chain.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 struct ChainAccess {
   using Rigid = Chain::Rigid;
@@ -22,4 +22,4 @@ struct ChainAccess {
   static void sweep(const Chain& c, const JointVector& q, const Sweep& s) noexcept;
 };
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

@@ -9,7 +9,7 @@
 
 #include "ik_impl.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 using namespace ik_detail;
 
@@ -385,4 +385,4 @@ bool IkSolver::Impl::nearest_by_free_joint(const Pose& target, const JointVector
   return false;
 }
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

@@ -8,7 +8,7 @@
 #include "ik_numeric.hpp"
 #include "ik_spherical.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 namespace ik_detail {
 
@@ -106,4 +106,4 @@ struct IkSolver::Impl {
   void emit(const Pose& target, Branch& b) noexcept;
 };
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

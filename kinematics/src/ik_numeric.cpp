@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace exodaq::kin::ik_detail {
+namespace exodaq::kinematics::ik_detail {
 
 Eigen::Vector3d rotation_vector(const Eigen::Matrix3d& R) noexcept {
   Eigen::Quaterniond q(R);
@@ -127,4 +127,4 @@ void wrap_into_limits(const Chain& chain, JointVector& q, const JointVector* pre
   }
 }
 
-}  // namespace exodaq::kin::ik_detail
+}  // namespace exodaq::kinematics::ik_detail

@@ -6,7 +6,7 @@
 
 #include "exodaq/kinematics/chain.hpp"
 
-namespace exodaq::kin::ik_detail {
+namespace exodaq::kinematics::ik_detail {
 
 inline constexpr double kTwoPi = 6.283185307179586476925286766559;
 
@@ -78,4 +78,4 @@ struct Random {
   }
 };
 
-}  // namespace exodaq::kin::ik_detail
+}  // namespace exodaq::kinematics::ik_detail

@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace exodaq::kin::ik_detail {
+namespace exodaq::kinematics::ik_detail {
 
 namespace {
 
@@ -228,4 +228,4 @@ int SphericalShoulderArm::solve(const Pose& target, double q1, double reach_slac
   return count;
 }
 
-}  // namespace exodaq::kin::ik_detail
+}  // namespace exodaq::kinematics::ik_detail

@@ -9,7 +9,7 @@
 
 #include "exodaq/kinematics/chain.hpp"
 
-namespace exodaq::kin::ik_detail {
+namespace exodaq::kinematics::ik_detail {
 
 struct SphericalCandidate {
   JointVector q;                // joint angles (offsets removed), not yet wrapped or polished
@@ -55,4 +55,4 @@ class SphericalShoulderArm {
   double a_ = 0.0, b_ = 0.0, c_ = 0.0;
 };
 
-}  // namespace exodaq::kin::ik_detail
+}  // namespace exodaq::kinematics::ik_detail

@@ -9,7 +9,7 @@
 
 #include "ik_impl.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 using namespace ik_detail;
 
@@ -203,4 +203,4 @@ void IkSolver::Impl::emit(const Pose& target, Branch& b) noexcept {
   result.solutions.push_back(s);
 }
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

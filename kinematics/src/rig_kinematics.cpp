@@ -5,7 +5,7 @@
 
 #include "chain_access.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 void evaluate_rig(const Chain& chain, const RigKinematicsConfig& config, const JointVector& q,
                   RigPose& out) noexcept {
@@ -65,4 +65,4 @@ void evaluate_rig(const Chain& chain, const RigKinematicsConfig& config, const J
   out.near_singular = !(out.shoulder_manipulability_normalised >= config.singularity_threshold);
 }
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 namespace {
 
@@ -324,4 +324,4 @@ TrajectorySample JointTrajectory::sample(double t) const noexcept {
   return s;
 }
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

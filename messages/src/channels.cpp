@@ -5,7 +5,7 @@
 
 #include "exodaq/message_types.hpp"
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 namespace {
 
@@ -123,4 +123,4 @@ std::string regex_escape(std::string_view literal) {
   return out;
 }
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

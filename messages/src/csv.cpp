@@ -8,7 +8,7 @@
 #include <type_traits>
 #include <variant>
 
-namespace exodaq::msg::csv {
+namespace exodaq::messages::csv {
 
 namespace {
 
@@ -403,4 +403,4 @@ bool split(std::string_view text, std::vector<std::string>& out, Spaces spaces) 
   return !quoted;
 }
 
-}  // namespace exodaq::msg::csv
+}  // namespace exodaq::messages::csv

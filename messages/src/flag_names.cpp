@@ -7,7 +7,7 @@
 #include "exodaq/palm_pose_t.hpp"
 #include "exodaq/status_t.hpp"
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 namespace {
 
@@ -174,4 +174,4 @@ std::string_view homing_name(std::int8_t homing) {
   }
 }
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -12,7 +12,7 @@
 
 #include "exodaq/common/files.hpp"
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 namespace {
 
@@ -604,4 +604,4 @@ void write_log(const std::string& path, const std::vector<OwnedEvent>& events) {
   writer.close();
 }
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -2,7 +2,7 @@
 
 #include <cstdio>
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 Kind kind_of(const Message& m) noexcept {
   return static_cast<Kind>(m.index());
@@ -132,4 +132,4 @@ bool is_startup_message(const Stamp& s) noexcept {
   return s.utime == 0 && s.mono_ns == 0 && s.seq == 0;
 }
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

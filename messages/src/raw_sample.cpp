@@ -2,7 +2,7 @@
 
 #include <cstddef>
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 void to_encoder_raw(const drivers::EncoderSample& s, encoder_raw_t& out) noexcept {
   out.present = s.present;
@@ -36,4 +36,4 @@ void from_encoder_raw(const encoder_raw_t& raw, drivers::EncoderSample& s) noexc
   s.channel_fresh = s.present ? 0x3FU : 0U;
 }
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -2,7 +2,7 @@
 
 #include "exodaq/messages/message.hpp"
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 std::string describe(const RunMix& mix) {
   return "two runs interleaved on prefix '" + mix.prefix + "': run ids " + run_id_text(mix.first) +
@@ -23,4 +23,4 @@ std::optional<RunMix> RunMixDetector::observe(const std::string& prefix, std::in
   return RunMix{prefix, run_id, previous};
 }
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <climits>
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 DaemonCounts daemon_counts(const status_t& s) noexcept {
   DaemonCounts c;
@@ -143,4 +143,4 @@ std::string describe(const SeqTally& t) {
   return out;
 }
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -4,7 +4,7 @@
 
 #include <stdexcept>
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 struct Subscriber::Sub {
   Subscriber* owner = nullptr;
@@ -52,4 +52,4 @@ int Subscriber::fileno() {
   return lcm_->getFileno();
 }
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -1,4 +1,4 @@
-#include "exodaq/config/calibration_file.hpp"
+#include "exodaq/settings/calibration_file.hpp"
 
 #include <charconv>
 #include <cmath>
@@ -9,9 +9,9 @@
 #include <system_error>
 
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 namespace {
 
@@ -190,8 +190,8 @@ void write_calibration_file(const std::string& path, const Calibration& cal,
   }
 }
 
-kin::Chain apply_calibration(const kin::Chain& nominal, const Calibration& cal) {
-  if (nominal.convention() != kin::Convention::kStandardDh) {
+kinematics::Chain apply_calibration(const kinematics::Chain& nominal, const Calibration& cal) {
+  if (nominal.convention() != kinematics::Convention::kStandardDh) {
     throw std::invalid_argument(
         "apply_calibration: the calibration's DH deviations (seed 000 Δζ) are defined for a "
         "standard-DH chain; this model uses another convention");
@@ -202,16 +202,17 @@ kin::Chain apply_calibration(const kin::Chain& nominal, const Calibration& cal) 
         "model has " +
         std::to_string(nominal.joint_count()) + " joints");
   }
-  std::vector<kin::JointDescription> joints = nominal.joints();
+  std::vector<kinematics::JointDescription> joints = nominal.joints();
   joints[1].dh.d += cal.dh.d2;
   joints[2].dh.d += cal.dh.d3;
   joints[4].dh.d += cal.dh.d5;
   joints[2].dh.a += cal.dh.a3;
   joints[4].dh.a += cal.dh.a5;
-  kin::Pose tool = nominal.tool();
+  kinematics::Pose tool = nominal.tool();
   tool.translation() +=
       Eigen::Vector3d(cal.marker_offset_m[0], cal.marker_offset_m[1], cal.marker_offset_m[2]);
-  return kin::Chain(kin::Convention::kStandardDh, std::move(joints), nominal.base(), tool);
+  return kinematics::Chain(kinematics::Convention::kStandardDh, std::move(joints), nominal.base(),
+                           tool);
 }
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

@@ -1,11 +1,11 @@
-#include "exodaq/config/content_hash.hpp"
+#include "exodaq/settings/content_hash.hpp"
 
 #include <gcrypt.h>
 
 #include <array>
 #include <stdexcept>
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 std::string sha256_hex(std::string_view bytes) {
   // libgcrypt (already loaded by libsystemd) wants its version check once
@@ -24,4 +24,4 @@ std::string sha256_hex(std::string_view bytes) {
   return out;
 }
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

@@ -1,4 +1,4 @@
-#include "exodaq/config/model_file.hpp"
+#include "exodaq/settings/model_file.hpp"
 
 #include <sys/stat.h>
 #include <cmath>
@@ -7,9 +7,9 @@
 #include <set>
 #include <sstream>
 
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 namespace {
 
@@ -28,9 +28,9 @@ struct Units {
 
 // A pose block: {translation: [x, y, z], rpy: [roll, pitch, yaw]} or
 // {translation, rotation: [[r00, r01, r02], [r10, ...], [r20, ...]]}; every key optional.
-kin::Pose read_pose(MapReader& parent, const std::string& key, const Units& u) {
+kinematics::Pose read_pose(MapReader& parent, const std::string& key, const Units& u) {
   MapReader m = parent.map(key);
-  kin::Pose pose = kin::Pose::Identity();
+  kinematics::Pose pose = kinematics::Pose::Identity();
   if (m.has("translation")) {
     const auto t = m.numbers_fixed<3>("translation");
     pose.translation() = Eigen::Vector3d(t[0], t[1], t[2]) * u.length;
@@ -72,11 +72,11 @@ kin::Pose read_pose(MapReader& parent, const std::string& key, const Units& u) {
   return pose;
 }
 
-kin::Convention read_convention(MapReader& top, std::string& name) {
+kinematics::Convention read_convention(MapReader& top, std::string& name) {
   name = top.choice("convention", {"standard_dh", "modified_dh", "poe"});
-  return name == "standard_dh"   ? kin::Convention::kStandardDh
-         : name == "modified_dh" ? kin::Convention::kModifiedDh
-                                 : kin::Convention::kProductOfExponentials;
+  return name == "standard_dh"   ? kinematics::Convention::kStandardDh
+         : name == "modified_dh" ? kinematics::Convention::kModifiedDh
+                                 : kinematics::Convention::kProductOfExponentials;
 }
 
 Units read_units(MapReader& top) {
@@ -87,7 +87,7 @@ Units read_units(MapReader& top) {
   return u;
 }
 
-void read_screw(MapReader& j, const Units& u, kin::JointDescription& d) {
+void read_screw(MapReader& j, const Units& u, kinematics::JointDescription& d) {
   MapReader s = j.map("screw");
   const auto w = s.numbers_fixed<3>("omega");
   const auto q = s.numbers_fixed<3>("q");
@@ -101,7 +101,7 @@ void read_screw(MapReader& j, const Units& u, kin::JointDescription& d) {
   d.dh.theta_offset = j.number_or("offset", 0.0) * u.angle;
 }
 
-void read_dh(MapReader& j, const Units& u, kin::JointDescription& d) {
+void read_dh(MapReader& j, const Units& u, kinematics::JointDescription& d) {
   MapReader h = j.map("dh");
   d.dh.a = h.number("a") * u.length;
   d.dh.alpha = h.number("alpha") * u.angle;
@@ -110,9 +110,9 @@ void read_dh(MapReader& j, const Units& u, kin::JointDescription& d) {
   h.finish();
 }
 
-kin::JointDescription read_joint(MapReader& j, const Units& u, bool poe,
-                                 std::set<std::string>& names) {
-  kin::JointDescription d;
+kinematics::JointDescription read_joint(MapReader& j, const Units& u, bool poe,
+                                        std::set<std::string>& names) {
+  kinematics::JointDescription d;
   d.name = j.string("name");
   if (d.name.empty()) j.fail_key("name", "joint name in " + j.context() + " is empty");
   if (!names.insert(d.name).second) j.fail_key("name", "duplicate joint name '" + d.name + "'");
@@ -133,7 +133,7 @@ kin::JointDescription read_joint(MapReader& j, const Units& u, bool poe,
 }
 
 struct Joints {
-  std::vector<kin::JointDescription> list;
+  std::vector<kinematics::JointDescription> list;
   std::vector<int> lines;  // where each joint is written
   YAML::Node node;
 };
@@ -144,9 +144,9 @@ Joints read_joints(MapReader& top, const Units& u, bool poe) {
   const YAML::Node& jnode = out.node;
   if (!jnode.IsSequence()) top.fail(jnode, "'joints' must be a list of joints");
   if (jnode.size() == 0) top.fail(jnode, "'joints' is empty: a model needs at least one joint");
-  if (jnode.size() > static_cast<std::size_t>(kin::kMaxJoints)) {
+  if (jnode.size() > static_cast<std::size_t>(kinematics::kMaxJoints)) {
     top.fail(jnode, "'joints' has " + std::to_string(jnode.size()) + " joints, at most " +
-                        std::to_string(kin::kMaxJoints) + " are supported");
+                        std::to_string(kinematics::kMaxJoints) + " are supported");
   }
   std::set<std::string> names;
   for (std::size_t i = 0; i < jnode.size(); ++i) {
@@ -159,7 +159,8 @@ Joints read_joints(MapReader& top, const Units& u, bool poe) {
 
 // Standard and modified DH take a 'tool' (frame n to palm); PoE takes the
 // palm pose at q = 0 as 'home_pose'.
-kin::Pose read_tool(MapReader& top, const Units& u, bool poe, const std::string& convention) {
+kinematics::Pose read_tool(MapReader& top, const Units& u, bool poe,
+                           const std::string& convention) {
   if (poe) {
     if (top.has("tool")) {
       top.fail_key("tool",
@@ -174,12 +175,12 @@ kin::Pose read_tool(MapReader& top, const Units& u, bool poe, const std::string&
                  "(frame n to palm) for " +
                      convention);
   }
-  return top.has("tool") ? read_pose(top, "tool", u) : kin::Pose::Identity();
+  return top.has("tool") ? read_pose(top, "tool", u) : kinematics::Pose::Identity();
 }
 
-kin::JointVector read_home_posture(MapReader& top, const Units& u, const Joints& joints) {
+kinematics::JointVector read_home_posture(MapReader& top, const Units& u, const Joints& joints) {
   const int n = static_cast<int>(joints.list.size());
-  kin::JointVector home = kin::JointVector::Zero(n);
+  kinematics::JointVector home = kinematics::JointVector::Zero(n);
   if (top.has("home_posture")) {
     const YAML::Node hp = top.child("home_posture");
     const auto v = top.to_numbers(hp, "home_posture");
@@ -203,8 +204,8 @@ kin::JointVector read_home_posture(MapReader& top, const Units& u, const Joints&
   return home;
 }
 
-kin::RigKinematicsConfig read_rig(MapReader& top, int n) {
-  kin::RigKinematicsConfig rig;
+kinematics::RigKinematicsConfig read_rig(MapReader& top, int n) {
+  kinematics::RigKinematicsConfig rig;
   rig.elbow_frame = static_cast<int>(top.integer_or("elbow_frame", n < 4 ? n : 4));
   if (rig.elbow_frame < 0 || rig.elbow_frame > n + 1) {
     top.fail_key("elbow_frame", "'elbow_frame' must be a frame 0.." + std::to_string(n + 1) +
@@ -237,21 +238,22 @@ KinematicModel read_model(const YAML::Node& root, const std::string& file) {
   model.name = top.string("name");
   model.description = top.string_or("description", "");
   std::string conv;
-  const kin::Convention convention = read_convention(top, conv);
-  const bool poe = convention == kin::Convention::kProductOfExponentials;
+  const kinematics::Convention convention = read_convention(top, conv);
+  const bool poe = convention == kinematics::Convention::kProductOfExponentials;
   const Units u = read_units(top);
   Joints joints = read_joints(top, u, poe);
 
   top.allow("base");
   top.allow(poe ? "home_pose" : "tool");
-  const kin::Pose base = top.has("base") ? read_pose(top, "base", u) : kin::Pose::Identity();
-  const kin::Pose tool = read_tool(top, u, poe, conv);
+  const kinematics::Pose base =
+      top.has("base") ? read_pose(top, "base", u) : kinematics::Pose::Identity();
+  const kinematics::Pose tool = read_tool(top, u, poe, conv);
   model.home_posture = read_home_posture(top, u, joints);
   model.rig = read_rig(top, static_cast<int>(joints.list.size()));
   top.finish();
 
   try {
-    model.chain = kin::Chain(convention, std::move(joints.list), base, tool);
+    model.chain = kinematics::Chain(convention, std::move(joints.list), base, tool);
   } catch (const std::exception& e) {
     throw ConfigError(file, line_of(joints.node), e.what());
   }
@@ -293,4 +295,4 @@ std::string default_model_path() {
   return installed;
 }
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

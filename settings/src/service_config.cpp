@@ -1,4 +1,4 @@
-#include "exodaq/config/service_config.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -12,13 +12,13 @@
 #include <type_traits>
 
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/content_hash.hpp"
-#include "exodaq/config/setting_classes.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/drivers/source_factory.hpp"
+#include "exodaq/settings/content_hash.hpp"
+#include "exodaq/settings/setting_classes.hpp"
 #include "setting_visit.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 namespace {
 
@@ -311,8 +311,8 @@ drivers::SourceContext make_source_context(const ServiceConfig& config) {
     j.upper_rad = config.model.chain.joints()[idx].limits.upper;
     j.max_speed_rad_s = e.max_speed_rad_s;
   }
-  ctx.chain = std::make_shared<const kin::Chain>(config.model.chain);
-  ctx.rig = std::make_shared<const kin::RigKinematicsConfig>(config.model.rig);
+  ctx.chain = std::make_shared<const kinematics::Chain>(config.model.chain);
+  ctx.rig = std::make_shared<const kinematics::RigKinematicsConfig>(config.model.rig);
   return ctx;
 }
 
@@ -413,4 +413,4 @@ std::string to_yaml(const ServiceConfig& c) {
   return o.str();
 }
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

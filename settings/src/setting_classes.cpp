@@ -1,4 +1,4 @@
-#include "exodaq/config/setting_classes.hpp"
+#include "exodaq/settings/setting_classes.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -7,10 +7,10 @@
 #include <map>
 #include <type_traits>
 
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "setting_visit.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 std::string setting_number(double v) {
   if (v == 0.0) return "0";
@@ -239,4 +239,4 @@ std::string describe_changes(const std::vector<SettingChange>& changes, std::siz
   return out;
 }
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

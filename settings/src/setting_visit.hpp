@@ -6,10 +6,10 @@
 #include <string_view>
 #include <vector>
 
-#include "exodaq/config/service_config.hpp"
-#include "exodaq/config/setting_list.hpp"
+#include "exodaq/settings/service_config.hpp"
+#include "exodaq/settings/setting_list.hpp"
 
-namespace exodaq::config::detail {
+namespace exodaq::settings::detail {
 
 // One row of setting_list.hpp, less its field.
 struct Declaration {
@@ -97,4 +97,4 @@ std::string value_text(const Declaration& d, double v);
 std::string value_text(const Declaration& d, const std::string& v);
 std::string value_text(const Declaration& d, RequireSync v);
 
-}  // namespace exodaq::config::detail
+}  // namespace exodaq::settings::detail

@@ -7,10 +7,10 @@
 #include <sstream>
 #include <string>
 
-#include "exodaq/config/setting_classes.hpp"
+#include "exodaq/settings/setting_classes.hpp"
 
 int main(int argc, char** argv) {
-  const std::string table = exodaq::config::settings_table();
+  const std::string table = exodaq::settings::settings_table();
   if (argc < 2) {
     std::cout << table;
     return 0;

@@ -31,7 +31,7 @@ exodaq::encoder_raw_t raw(std::int64_t seq, std::int64_t run_id = 0x5eed) {
 
 template <typename T>
 Buf encoded(const T& m) {
-  return exodaq::msg::encode(m);
+  return exodaq::messages::encode(m);
 }
 
 exodaq::joint_state_t joint_state(std::int64_t seq) {
@@ -44,7 +44,7 @@ exodaq::joint_state_t joint_state(std::int64_t seq) {
 
 void write_log(const fs::path& path, const Events& events) {
   fs::remove(path);
-  exodaq::msg::LogWriter log(path);
+  exodaq::messages::LogWriter log(path);
   std::int64_t t = 1'700'000'000'000'000;
   for (const auto& [channel, data] : events)
     log.write(channel, t += 1000, data.data(), data.size());

@@ -24,10 +24,10 @@
 #include <string>
 #include <vector>
 
-#include "exodaq/config/calibration_file.hpp"
-#include "exodaq/config/model_file.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/replay_source.hpp"
+#include "exodaq/settings/calibration_file.hpp"
+#include "exodaq/settings/model_file.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "process.hpp"
 #include "sim_daemon.hpp"
 
@@ -88,11 +88,11 @@ std::string join(const std::vector<std::string>& v) {
 std::vector<std::string> library_messages(const Case& c) {
   try {
     if (c.kind == "models") {
-      (void)exodaq::config::load_model_file(c.file);
+      (void)exodaq::settings::load_model_file(c.file);
     } else if (c.kind == "calibrations") {
-      (void)exodaq::config::load_calibration_file(c.file);
+      (void)exodaq::settings::load_calibration_file(c.file);
     } else if (c.kind == "configs") {
-      (void)exodaq::config::load_service_config(c.file);
+      (void)exodaq::settings::load_service_config(c.file);
     } else {
       exodaq::drivers::ReplaySettings settings;
       settings.path = c.file;
@@ -105,7 +105,7 @@ std::vector<std::string> library_messages(const Case& c) {
       }
       return out;
     }
-  } catch (const exodaq::config::ConfigError& e) {
+  } catch (const exodaq::ConfigError& e) {
     return {e.what()};
   } catch (const std::runtime_error& e) {
     return {e.what()};

@@ -2,7 +2,7 @@
 """Issue 25.4: a large calibration input costs bounded memory.
 
 The calibration readers keep at most 2^20 encoder and 2^20 marker samples
-(tools/calibrate/include/exodaq/calibration/inputs.hpp: kMaxEncoderSamples,
+(tools/calibration/include/exodaq/calibration/inputs.hpp: kMaxEncoderSamples,
 kMaxMarkerSamples; 64 and 48 bytes a sample), so `exodaq calibrate` on any
 input within the 1 GiB file limit must stay under
 

@@ -21,7 +21,7 @@ inline constexpr std::int64_t kEpochUs = 1'700'000'000'000'000LL;
 inline NominalModel rig_model() {
   NominalModel m;
   const double alpha[6] = {-90, 90, -90, 90, -90, 0};
-  for (int i = 0; i < 6; ++i) m.dh[i] = kin::DhRow{0.0, alpha[i] * kDeg, 0.0, 0.0};
+  for (int i = 0; i < 6; ++i) m.dh[i] = kinematics::DhRow{0.0, alpha[i] * kDeg, 0.0, 0.0};
   m.dh[3].d = 0.145;
   m.dh[5].d = 0.152;
   return m;

@@ -13,7 +13,7 @@
 
 #include "tool_run.hpp"
 
-#include "exodaq/config/calibration_file.hpp"
+#include "exodaq/settings/calibration_file.hpp"
 #include "synthetic.hpp"
 
 namespace exodaq::calibration {
@@ -76,7 +76,7 @@ TEST_F(CalibrateCli, WritesACalibrationTheDaemonLoads) {
   EXPECT_NE(r.output.find("Cross-validation"), std::string::npos);
   EXPECT_NE(r.output.find("13.60 -> 1.05"), std::string::npos);
 
-  const config::Calibration c = config::load_calibration_file(out);
+  const settings::Calibration c = settings::load_calibration_file(out);
   ASSERT_TRUE(c.provenance.rms_after_m.has_value());
   EXPECT_LT(*c.provenance.rms_after_m, 1.2 * 0.52e-3);
   EXPECT_GT(*c.provenance.rms_before_m, 5e-3);
@@ -113,7 +113,7 @@ TEST_F(CalibrateCli, MarkerLayoutIdentifiesEveryParameter) {
   EXPECT_NE(r.output.find("+ base markers 10, 11, 12"), std::string::npos);
   EXPECT_NE(r.output.find("Identifiability: every free parameter is identifiable"),
             std::string::npos);
-  const config::Calibration c = config::load_calibration_file(out);
+  const settings::Calibration c = settings::load_calibration_file(out);
   const ParamVector truth = table4_results();
   for (int j = 0; j < 6; ++j) {
     EXPECT_NEAR(c.encoder_offset_rad[j], truth[kTheta1 + j], 0.1 * kDeg) << "joint " << j + 1;
@@ -210,7 +210,7 @@ TEST_F(CalibrateOutput, ASymlinkIsFollowedAndKept) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_TRUE(std::filesystem::is_symlink(d + "/current.yaml"));
   EXPECT_EQ(std::filesystem::read_symlink(d + "/current.yaml"), "rig-2026-11.yaml");
-  EXPECT_NO_THROW(config::load_calibration_file(d + "/rig-2026-11.yaml"));
+  EXPECT_NO_THROW(settings::load_calibration_file(d + "/rig-2026-11.yaml"));
   // The replaced file keeps its mode.
   EXPECT_EQ(std::filesystem::status(d + "/rig-2026-11.yaml").permissions(),
             std::filesystem::perms(0640));

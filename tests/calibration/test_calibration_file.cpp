@@ -6,15 +6,15 @@
 #include <cstdio>
 #include <string>
 
-#include "exodaq/config/calibration_file.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
+#include "exodaq/settings/calibration_file.hpp"
 
 namespace {
 
-using exodaq::config::Calibration;
-using exodaq::config::ConfigError;
-using exodaq::config::load_calibration_text;
-namespace kin = exodaq::kin;
+using exodaq::ConfigError;
+using exodaq::settings::Calibration;
+using exodaq::settings::load_calibration_text;
+namespace kinematics = exodaq::kinematics;
 
 constexpr double kDeg = 0.017453292519943295;
 
@@ -60,7 +60,7 @@ TEST(CalibrationFile, RoundTrip) {
   for (int i = 0; i < 6; ++i) c.encoder_offset_rad[i] = 0.1 * i - 0.234567891234;
   c.dh = {1e-3, -2.5e-4, 3.3e-3, -4.01e-3, 1.2345678e-5};
   c.marker_offset_m = {-1e-4, 2e-4, -8.46e-3};
-  c.camera = exodaq::config::CameraTransform{{0.20329, 0.84931, 0.2243}, {-1.5, 0.01, -2.3}};
+  c.camera = exodaq::settings::CameraTransform{{0.20329, 0.84931, 0.2243}, {-1.5, 0.01, -2.3}};
   c.provenance.created_by = "exodaq calibrate 0.1.0";
   c.provenance.date = "2024-05-01T12:00:00Z";
   c.provenance.model = "config/models/macaque_exo.yaml";
@@ -70,8 +70,8 @@ TEST(CalibrationFile, RoundTrip) {
   c.provenance.samples = 400;
   c.provenance.notes = "held: dtheta1\nsecond line";
   const std::string path = ::testing::TempDir() + "/roundtrip_cal.yaml";
-  exodaq::config::write_calibration_file(path, c);
-  const Calibration r = exodaq::config::load_calibration_file(path);
+  exodaq::settings::write_calibration_file(path, c);
+  const Calibration r = exodaq::settings::load_calibration_file(path);
   for (int i = 0; i < 6; ++i) EXPECT_NEAR(r.encoder_offset_rad[i], c.encoder_offset_rad[i], 1e-15);
   EXPECT_NEAR(r.dh.d2, c.dh.d2, 1e-18);
   EXPECT_NEAR(r.dh.d3, c.dh.d3, 1e-18);
@@ -92,9 +92,9 @@ TEST(CalibrationFile, RoundTrip) {
   EXPECT_EQ(*r.provenance.samples, 400);
   EXPECT_EQ(r.provenance.notes, c.provenance.notes);
   // Read -> write -> read is stable (mm <-> m may move the last bit once).
-  const Calibration r2 = load_calibration_text(exodaq::config::calibration_to_yaml(r), "again");
-  EXPECT_EQ(exodaq::config::calibration_to_yaml(r2).size(),
-            exodaq::config::calibration_to_yaml(r).size());
+  const Calibration r2 = load_calibration_text(exodaq::settings::calibration_to_yaml(r), "again");
+  EXPECT_EQ(exodaq::settings::calibration_to_yaml(r2).size(),
+            exodaq::settings::calibration_to_yaml(r).size());
   EXPECT_NEAR(r2.camera->translation_m[1], c.camera->translation_m[1], 1e-15);
   std::remove(path.c_str());
 }
@@ -131,11 +131,11 @@ TEST(CalibrationFile, ErrorMessagesAreExact) {
 
 TEST(CalibrationFile, ShippedFilesLoad) {
   const std::string dir = std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/";
-  const Calibration nominal = exodaq::config::load_calibration_file(dir + "nominal.yaml");
+  const Calibration nominal = exodaq::settings::load_calibration_file(dir + "nominal.yaml");
   EXPECT_NEAR(nominal.encoder_offset_rad[0], 30.7 * kDeg, 1e-12);
   EXPECT_NEAR(nominal.encoder_offset_rad[4], -25.5 * kDeg, 1e-12);
   EXPECT_EQ(nominal.dh.d5, 0.0);
-  const Calibration t4 = exodaq::config::load_calibration_file(dir + "seed000_table4.yaml");
+  const Calibration t4 = exodaq::settings::load_calibration_file(dir + "seed000_table4.yaml");
   EXPECT_NEAR(t4.encoder_offset_rad[2], -13.45 * kDeg, 1e-12);
   EXPECT_NEAR(t4.dh.d5, 2.80e-3, 1e-12);
   EXPECT_NEAR(t4.marker_offset_m[2], -8.46e-3, 1e-12);
@@ -147,7 +147,7 @@ TEST(CalibrationFile, ShippedFilesLoad) {
 // The camera convention puts z0 (joint 1's vertical axis) along the camera's
 // +y ("Y up") for Table 4's angles, and O0 ~0.85 m above the camera origin.
 TEST(CalibrationFile, EulerConventionIsSensibleForTable4) {
-  const Calibration t4 = exodaq::config::load_calibration_file(
+  const Calibration t4 = exodaq::settings::load_calibration_file(
       std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/seed000_table4.yaml");
   const auto& e = t4.camera->euler_xyz_rad;
   const Eigen::Matrix3d R = (Eigen::AngleAxisd(e[0], Eigen::Vector3d::UnitX()) *
@@ -159,24 +159,25 @@ TEST(CalibrationFile, EulerConventionIsSensibleForTable4) {
   EXPECT_GT(t4.camera->translation_m[1], 0.8);
 }
 
-kin::Chain rig_chain() {
+kinematics::Chain rig_chain() {
   const double alpha[6] = {-90, 90, -90, 90, -90, 0};
-  std::vector<kin::JointDescription> j(6);
+  std::vector<kinematics::JointDescription> j(6);
   for (int i = 0; i < 6; ++i) {
     j[i].name = "j" + std::to_string(i + 1);
-    j[i].dh = kin::DhRow{0.0, alpha[i] * kDeg, 0.0, 0.0};
+    j[i].dh = kinematics::DhRow{0.0, alpha[i] * kDeg, 0.0, 0.0};
   }
   j[3].dh.d = 0.145;
   j[5].dh.d = 0.152;
-  kin::Pose tool = kin::Pose::Identity();
+  kinematics::Pose tool = kinematics::Pose::Identity();
   tool.translation() = Eigen::Vector3d(0.001, 0.0, 0.0);
-  return kin::Chain(kin::Convention::kStandardDh, j, kin::Pose::Identity(), tool);
+  return kinematics::Chain(kinematics::Convention::kStandardDh, j, kinematics::Pose::Identity(),
+                           tool);
 }
 
 TEST(ApplyCalibration, AddsDeviationsToTheRightRows) {
-  const kin::Chain nominal = rig_chain();
+  const kinematics::Chain nominal = rig_chain();
   const Calibration c = load_calibration_text(kGood, "cal.yaml");
-  const kin::Chain cal = exodaq::config::apply_calibration(nominal, c);
+  const kinematics::Chain cal = exodaq::settings::apply_calibration(nominal, c);
   ASSERT_EQ(cal.joint_count(), 6);
   const auto& n = nominal.joints();
   const auto& j = cal.joints();
@@ -197,16 +198,16 @@ TEST(ApplyCalibration, AddsDeviationsToTheRightRows) {
       (cal.tool().translation() - Eigen::Vector3d(0.001 - 0.10e-3, -0.16e-3, -8.46e-3)).norm(), 0.0,
       1e-15);
   // The palm moves by the marker offset expressed in frame 6.
-  kin::JointVector q(6);
+  kinematics::JointVector q(6);
   q << 0.3, -1.2, 0.7, 0.2, -0.5, 0.4;
-  const kin::Pose f6 = cal.frame(q, 6);
+  const kinematics::Pose f6 = cal.frame(q, 6);
   const Eigen::Vector3d expect = f6 * cal.tool().translation();
   EXPECT_NEAR((cal.palm(q).translation() - expect).norm(), 0.0, 1e-12);
 }
 
 TEST(ApplyCalibration, RejectsOtherConventions) {
-  const kin::Chain poe = rig_chain().to_product_of_exponentials();
-  EXPECT_THROW(exodaq::config::apply_calibration(poe, Calibration{}), std::invalid_argument);
+  const kinematics::Chain poe = rig_chain().to_product_of_exponentials();
+  EXPECT_THROW(exodaq::settings::apply_calibration(poe, Calibration{}), std::invalid_argument);
 }
 
 }  // namespace

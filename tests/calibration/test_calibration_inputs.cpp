@@ -5,7 +5,7 @@
 #include <string>
 
 #include "exodaq/calibration/inputs.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 
 namespace exodaq::calibration {
 namespace {
@@ -13,7 +13,7 @@ namespace {
 std::string encoder_error(const std::string& text) {
   try {
     EncoderCsvReader().parse(text, "enc.csv");
-  } catch (const config::ConfigError& e) {
+  } catch (const exodaq::ConfigError& e) {
     return e.what();
   }
   return "no error";
@@ -22,7 +22,7 @@ std::string encoder_error(const std::string& text) {
 std::string marker_error(const std::string& text, int id = -1) {
   try {
     parse_marker_csv(text, "mocap.csv", id);
-  } catch (const config::ConfigError& e) {
+  } catch (const exodaq::ConfigError& e) {
     return e.what();
   }
   return "no error";
@@ -71,7 +71,7 @@ TEST(EncoderLog, AMissingOrSpecialFileIsAClearError) {
   const auto error = [](const std::string& path) {
     try {
       read_encoder_log(path);
-    } catch (const config::ConfigError& e) {
+    } catch (const exodaq::ConfigError& e) {
       return std::string(e.what());
     }
     return std::string("no error");
@@ -124,7 +124,7 @@ TEST(EncoderCsv, ReadsExodaqExportWithTheRecordedCalibration) {
   try {
     EncoderCsvReader().parse(text, "export.csv");
     FAIL();
-  } catch (const config::ConfigError& err) {
+  } catch (const exodaq::ConfigError& err) {
     EXPECT_EQ(std::string(err.what()),
               "export.csv:1: holds calibrated joint angles (theta = offset + theta_R): name the "
               "calibration they were computed with (-c CONFIG or --recorded-calibration FILE)");

@@ -11,8 +11,8 @@
 
 #include "exodaq/calibration/report.hpp"
 #include "exodaq/calibration/solver.hpp"
-#include "exodaq/config/calibration_file.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
+#include "exodaq/settings/calibration_file.hpp"
 #include "synthetic.hpp"
 
 namespace exodaq::calibration {
@@ -35,27 +35,27 @@ struct PalmError {
 };
 
 // The palm pose the daemon publishes in O0 (homing offsets Δθ⁰ + the calibrated
-// chain of config::apply_calibration) against the truth, over the joint
+// chain of settings::apply_calibration) against the truth, over the joint
 // readings of `points` (one per marker time: the hand marker at the palm).
 PalmError palm_error_in_o0(const ParamVector& x, const std::vector<AlignedSample>& points) {
   const NominalModel m = rig_model();
-  std::vector<kin::JointDescription> joints(6);
+  std::vector<kinematics::JointDescription> joints(6);
   for (int i = 0; i < 6; ++i) joints[i].dh = m.dh[i];
-  const kin::Chain nominal(kin::Convention::kStandardDh, joints, kin::Pose::Identity(),
-                           kin::Pose::Identity());
+  const kinematics::Chain nominal(kinematics::Convention::kStandardDh, joints,
+                                  kinematics::Pose::Identity(), kinematics::Pose::Identity());
   const ParamVector truth = table4_results();
-  const kin::Chain est = config::apply_calibration(nominal, to_calibration(x));
-  const kin::Chain tru = config::apply_calibration(nominal, to_calibration(truth));
+  const kinematics::Chain est = settings::apply_calibration(nominal, to_calibration(x));
+  const kinematics::Chain tru = settings::apply_calibration(nominal, to_calibration(truth));
   double sq_p = 0, sq_r = 0;
   std::size_t n = 0;
   for (const auto& p : points) {
     if (p.site.mount != MarkerMount::kHand || p.site.id > 3) continue;
-    kin::JointVector qe(6), qt(6);
+    kinematics::JointVector qe(6), qt(6);
     for (int j = 0; j < 6; ++j) {
       qe[j] = p.theta_r[j] + x[kTheta1 + j];
       qt[j] = p.theta_r[j] + truth[kTheta1 + j];
     }
-    const kin::Pose pe = est.palm(qe), pt = tru.palm(qt);
+    const kinematics::Pose pe = est.palm(qe), pt = tru.palm(qt);
     sq_p += (pe.translation() - pt.translation()).squaredNorm();
     const double angle = Eigen::AngleAxisd(pe.linear().transpose() * pt.linear()).angle();
     sq_r += angle * angle;
@@ -222,7 +222,7 @@ TEST(CalibrationMarkers, ValidationPredictsEveryMarkerFromItsSite) {
 std::string layout_error(const std::string& text) {
   try {
     load_marker_layout_text(text, "m.yaml");
-  } catch (const config::ConfigError& e) {
+  } catch (const exodaq::ConfigError& e) {
     return e.what();
   }
   return "no error";
@@ -272,7 +272,7 @@ TEST(MarkerCsvIds, KeepsTheGivenMarkersAndCountsTheOthers) {
   auto err = [&](const std::string& text, const std::vector<int>& ids) {
     try {
       parse_marker_csv_ids(text, "m.csv", ids);
-    } catch (const config::ConfigError& e) {
+    } catch (const exodaq::ConfigError& e) {
       return std::string(e.what());
     }
     return std::string("no error");

@@ -10,7 +10,7 @@
 
 #include "exodaq/calibration/report.hpp"
 #include "exodaq/calibration/solver.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "synthetic.hpp"
 
 namespace exodaq::calibration {
@@ -136,16 +136,16 @@ TEST(CalibrationSolver, ExactDegeneraciesAreFoundAndNamed) {
 }
 
 TEST(CalibrationSolver, ModelMatchesKinematicsChain) {
-  // The Ceres cost's templated FK agrees with kin::Chain (apply_calibration).
+  // The Ceres cost's templated FK agrees with kinematics::Chain (apply_calibration).
   const NominalModel m = rig_model();
   const ParamVector x = table4_results();
-  const config::Calibration cal = to_calibration(x);
-  std::vector<kin::JointDescription> joints(6);
+  const settings::Calibration cal = to_calibration(x);
+  std::vector<kinematics::JointDescription> joints(6);
   for (int i = 0; i < 6; ++i) joints[i].dh = m.dh[i];
-  const kin::Chain chain =
-      config::apply_calibration(kin::Chain(kin::Convention::kStandardDh, joints,
-                                           kin::Pose::Identity(), kin::Pose::Identity()),
-                                cal);
+  const kinematics::Chain chain = settings::apply_calibration(
+      kinematics::Chain(kinematics::Convention::kStandardDh, joints, kinematics::Pose::Identity(),
+                        kinematics::Pose::Identity()),
+      cal);
   const Eigen::Matrix3d R = (Eigen::AngleAxisd(x[kPhiX], Eigen::Vector3d::UnitX()) *
                              Eigen::AngleAxisd(x[kPhiY], Eigen::Vector3d::UnitY()) *
                              Eigen::AngleAxisd(x[kPhiZ], Eigen::Vector3d::UnitZ()))
@@ -153,7 +153,7 @@ TEST(CalibrationSolver, ModelMatchesKinematicsChain) {
   const Eigen::Vector3d d(x[kDx], x[kDy], x[kDz]);
   for (int k = 0; k < 20; ++k) {
     std::array<double, 6> theta_r{};
-    kin::JointVector q(6);
+    kinematics::JointVector q(6);
     for (int j = 0; j < 6; ++j) {
       theta_r[j] = joint_angle(j, 1.7 * k, 3, -1) - x[kTheta1 + j];
       q[j] = theta_r[j] + x[kTheta1 + j];
@@ -312,7 +312,7 @@ TEST(CalibrationSolver, BoundsFileErrors) {
   auto err = [](const std::string& text) {
     try {
       load_bounds_text(text, "b.yaml");
-    } catch (const config::ConfigError& e) {
+    } catch (const exodaq::ConfigError& e) {
       return std::string(e.what());
     }
     return std::string("no error");

@@ -12,7 +12,7 @@
 
 #include "capture_writers.hpp"
 #include "exodaq/calibration/inputs.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "sample_stores.hpp"
 
 namespace exodaq::calibration {
@@ -164,7 +164,7 @@ TEST_F(MarkerFiles, OptiTrackMotiveMarkersAndRigidBodyMarkers) {
 std::string error_of(const std::function<void()>& f) {
   try {
     f();
-  } catch (const config::ConfigError& e) {
+  } catch (const exodaq::ConfigError& e) {
     return e.what();
   }
   return "no error";

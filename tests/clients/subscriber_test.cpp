@@ -19,7 +19,7 @@
 #include <variant>
 #include <vector>
 
-namespace msg = exodaq::msg;
+namespace messages = exodaq::messages;
 using exodaq::mono_now_ns;
 
 namespace {
@@ -37,25 +37,25 @@ std::vector<char> encode(const T& m) {
 }
 
 TEST(Subscriber, ChannelNamesCarryThePrefix) {
-  EXPECT_EQ(msg::channel_name("", msg::Kind::kJointState), "EXO_JOINT_STATE");
-  EXPECT_EQ(msg::channel_name("RIG2_", msg::Kind::kStatus), "RIG2_EXO_STATUS");
-  EXPECT_EQ(msg::channel_name("r.", msg::Kind::kPalmPose), "r.EXO_PALM_POSE");
-  EXPECT_EQ(msg::channel_name("", msg::Kind::kEncoderRaw), "EXO_ENCODER_RAW");
+  EXPECT_EQ(messages::channel_name("", messages::Kind::kJointState), "EXO_JOINT_STATE");
+  EXPECT_EQ(messages::channel_name("RIG2_", messages::Kind::kStatus), "RIG2_EXO_STATUS");
+  EXPECT_EQ(messages::channel_name("r.", messages::Kind::kPalmPose), "r.EXO_PALM_POSE");
+  EXPECT_EQ(messages::channel_name("", messages::Kind::kEncoderRaw), "EXO_ENCODER_RAW");
 }
 
 TEST(Subscriber, ParseKindAcceptsShortBaseAndTypeNames) {
-  EXPECT_EQ(msg::parse_kind("joint_state"), msg::Kind::kJointState);
-  EXPECT_EQ(msg::parse_kind("EXO_JOINT_STATE"), msg::Kind::kJointState);
-  EXPECT_EQ(msg::parse_kind("palm_pose_t"), msg::Kind::kPalmPose);
-  EXPECT_EQ(msg::parse_kind("raw"), msg::Kind::kEncoderRaw);
-  EXPECT_EQ(msg::parse_kind("Status"), msg::Kind::kStatus);
-  EXPECT_FALSE(msg::parse_kind("RIG2_EXO_STATUS").has_value());
-  EXPECT_FALSE(msg::parse_kind("").has_value());
+  EXPECT_EQ(messages::parse_kind("joint_state"), messages::Kind::kJointState);
+  EXPECT_EQ(messages::parse_kind("EXO_JOINT_STATE"), messages::Kind::kJointState);
+  EXPECT_EQ(messages::parse_kind("palm_pose_t"), messages::Kind::kPalmPose);
+  EXPECT_EQ(messages::parse_kind("raw"), messages::Kind::kEncoderRaw);
+  EXPECT_EQ(messages::parse_kind("Status"), messages::Kind::kStatus);
+  EXPECT_FALSE(messages::parse_kind("RIG2_EXO_STATUS").has_value());
+  EXPECT_FALSE(messages::parse_kind("").has_value());
 }
 
 TEST(Subscriber, RegexEscapeMakesALiteral) {
-  EXPECT_EQ(msg::regex_escape("EXO_STATUS"), "EXO_STATUS");
-  EXPECT_EQ(msg::regex_escape("rig.2(a)*"), "rig\\.2\\(a\\)\\*");
+  EXPECT_EQ(messages::regex_escape("EXO_STATUS"), "EXO_STATUS");
+  EXPECT_EQ(messages::regex_escape("rig.2(a)*"), "rig\\.2\\(a\\)\\*");
 }
 
 TEST(Subscriber, KindOfPayloadUsesTheFingerprint) {
@@ -63,23 +63,23 @@ TEST(Subscriber, KindOfPayloadUsesTheFingerprint) {
   exodaq::status_t s{};
   const auto bj = encode(j);
   const auto bs = encode(s);
-  EXPECT_EQ(msg::kind_of_payload(bj.data(), bj.size()), msg::Kind::kJointState);
-  EXPECT_EQ(msg::kind_of_payload(bs.data(), bs.size()), msg::Kind::kStatus);
-  EXPECT_FALSE(msg::kind_of_payload(bj.data(), 7).has_value());
+  EXPECT_EQ(messages::kind_of_payload(bj.data(), bj.size()), messages::Kind::kJointState);
+  EXPECT_EQ(messages::kind_of_payload(bs.data(), bs.size()), messages::Kind::kStatus);
+  EXPECT_FALSE(messages::kind_of_payload(bj.data(), 7).has_value());
   const char junk[16] = {1, 2, 3, 4, 5, 6, 7, 8};
-  EXPECT_FALSE(msg::kind_of_payload(junk, sizeof junk).has_value());
+  EXPECT_FALSE(messages::kind_of_payload(junk, sizeof junk).has_value());
 }
 
 // One all-zero message of every kind of the list, in kind order.
 template <std::size_t... I>
-std::vector<msg::Message> blank_messages(std::index_sequence<I...>) {
-  return {msg::Message(std::in_place_index<I>)...};
+std::vector<messages::Message> blank_messages(std::index_sequence<I...>) {
+  return {messages::Message(std::in_place_index<I>)...};
 }
-std::vector<msg::Message> every_kind() {
-  return blank_messages(std::make_index_sequence<std::variant_size_v<msg::Message>>{});
+std::vector<messages::Message> every_kind() {
+  return blank_messages(std::make_index_sequence<std::variant_size_v<messages::Message>>{});
 }
 
-std::vector<char> encode_any(const msg::Message& m) {
+std::vector<char> encode_any(const messages::Message& m) {
   return std::visit([](const auto& v) { return encode(v); }, m);
 }
 
@@ -88,31 +88,32 @@ std::vector<char> encode_any(const msg::Message& m) {
 // columns that match its values: what the list derives, checked for each line.
 TEST(MessageList, EveryKindIsItselfEverywhere) {
   const auto all = every_kind();
-  ASSERT_EQ(all.size(), msg::kAllKinds.size());
+  ASSERT_EQ(all.size(), messages::kAllKinds.size());
   ASSERT_GE(all.size(), 5U);
   for (std::size_t i = 0; i < all.size(); ++i) {
-    const msg::Kind k = msg::kAllKinds[i];
-    const std::string type(msg::type_name(k));
-    EXPECT_EQ(msg::kind_of(all[i]), k) << type;
+    const messages::Kind k = messages::kAllKinds[i];
+    const std::string type(messages::type_name(k));
+    EXPECT_EQ(messages::kind_of(all[i]), k) << type;
     const auto bytes = encode_any(all[i]);
-    EXPECT_EQ(msg::kind_of_payload(bytes.data(), bytes.size()), k) << type;
-    for (const msg::Kind other : msg::kAllKinds) {
-      const auto decoded = msg::decode(other, bytes.data(), bytes.size());
-      EXPECT_EQ(decoded.has_value(), other == k) << type << " as " << msg::type_name(other);
+    EXPECT_EQ(messages::kind_of_payload(bytes.data(), bytes.size()), k) << type;
+    for (const messages::Kind other : messages::kAllKinds) {
+      const auto decoded = messages::decode(other, bytes.data(), bytes.size());
+      EXPECT_EQ(decoded.has_value(), other == k) << type << " as " << messages::type_name(other);
       if (decoded) {
-        EXPECT_EQ(msg::kind_of(*decoded), k);
+        EXPECT_EQ(messages::kind_of(*decoded), k);
       }
     }
-    EXPECT_EQ(msg::parse_kind(type), k);
-    EXPECT_EQ(msg::parse_kind(type.substr(0, type.size() - 2)), k) << type;
-    EXPECT_EQ(msg::parse_kind(msg::base_channel(k)), k) << type;
-    const auto parts = msg::split_channel(msg::channel_name("RIG2_", k));
+    EXPECT_EQ(messages::parse_kind(type), k);
+    EXPECT_EQ(messages::parse_kind(type.substr(0, type.size() - 2)), k) << type;
+    EXPECT_EQ(messages::parse_kind(messages::base_channel(k)), k) << type;
+    const auto parts = messages::split_channel(messages::channel_name("RIG2_", k));
     ASSERT_TRUE(parts.has_value()) << type;
     EXPECT_EQ(parts->prefix, "RIG2_");
     EXPECT_EQ(parts->kind, k);
     std::vector<std::string> values;
-    msg::csv::append_values(all[i], values);
-    EXPECT_EQ(msg::csv::header(k, msg::csv::numbered_joints()).size(), values.size()) << type;
+    messages::csv::append_values(all[i], values);
+    EXPECT_EQ(messages::csv::header(k, messages::csv::numbered_joints()).size(), values.size())
+        << type;
   }
 }
 
@@ -120,37 +121,37 @@ TEST(MessageList, EveryKindIsItselfEverywhere) {
 // client's generated types (an LCM fingerprint covers the names and types of
 // all fields). Types added to the list later are covered by the test above.
 TEST(MessageList, FingerprintsOfTheFirstFiveTypesAreUnchanged) {
-  const std::pair<msg::Kind, std::uint64_t> golden[] = {
-      {msg::Kind::kJointState, 0x3abbf41b00120c0aULL},
-      {msg::Kind::kPalmPose, 0x45316e9d1908ff1dULL},
-      {msg::Kind::kEncoderRaw, 0x2b9ba15490a8aeb1ULL},
-      {msg::Kind::kStatus, 0xabf6b6946b45ab99ULL},
-      {msg::Kind::kHoming, 0x5849a47166a8619eULL}};
+  const std::pair<messages::Kind, std::uint64_t> golden[] = {
+      {messages::Kind::kJointState, 0x3abbf41b00120c0aULL},
+      {messages::Kind::kPalmPose, 0x45316e9d1908ff1dULL},
+      {messages::Kind::kEncoderRaw, 0x2b9ba15490a8aeb1ULL},
+      {messages::Kind::kStatus, 0xabf6b6946b45ab99ULL},
+      {messages::Kind::kHoming, 0x5849a47166a8619eULL}};
   const auto all = every_kind();
   for (const auto& [k, fp] : golden) {
     const auto bytes = encode_any(all[static_cast<std::size_t>(k)]);
     std::uint64_t got = 0;
     for (int i = 0; i < 8; ++i) got = (got << 8) | static_cast<unsigned char>(bytes[i]);
-    EXPECT_EQ(got, fp) << msg::type_name(k);
+    EXPECT_EQ(got, fp) << messages::type_name(k);
   }
 }
 
 TEST(MessageList, PerCycleKindsAreTheCycleStreams) {
-  EXPECT_TRUE(msg::is_per_cycle(msg::Kind::kJointState));
-  EXPECT_TRUE(msg::is_per_cycle(msg::Kind::kPalmPose));
-  EXPECT_TRUE(msg::is_per_cycle(msg::Kind::kEncoderRaw));
-  EXPECT_FALSE(msg::is_per_cycle(msg::Kind::kStatus));
-  EXPECT_FALSE(msg::is_per_cycle(msg::Kind::kHoming));
+  EXPECT_TRUE(messages::is_per_cycle(messages::Kind::kJointState));
+  EXPECT_TRUE(messages::is_per_cycle(messages::Kind::kPalmPose));
+  EXPECT_TRUE(messages::is_per_cycle(messages::Kind::kEncoderRaw));
+  EXPECT_FALSE(messages::is_per_cycle(messages::Kind::kStatus));
+  EXPECT_FALSE(messages::is_per_cycle(messages::Kind::kHoming));
 }
 
 TEST(MessageList, AliasesAreWholeWordsOfOneKind) {
-  EXPECT_EQ(msg::parse_kind("joints"), msg::Kind::kJointState);
-  EXPECT_EQ(msg::parse_kind("JOINT"), msg::Kind::kJointState);
-  EXPECT_EQ(msg::parse_kind("Pose"), msg::Kind::kPalmPose);
-  EXPECT_EQ(msg::parse_kind("encoder"), msg::Kind::kEncoderRaw);
-  EXPECT_FALSE(msg::parse_kind("joint joints").has_value());
-  EXPECT_FALSE(msg::parse_kind("join").has_value());
-  EXPECT_FALSE(msg::parse_kind(" ").has_value());
+  EXPECT_EQ(messages::parse_kind("joints"), messages::Kind::kJointState);
+  EXPECT_EQ(messages::parse_kind("JOINT"), messages::Kind::kJointState);
+  EXPECT_EQ(messages::parse_kind("Pose"), messages::Kind::kPalmPose);
+  EXPECT_EQ(messages::parse_kind("encoder"), messages::Kind::kEncoderRaw);
+  EXPECT_FALSE(messages::parse_kind("joint joints").has_value());
+  EXPECT_FALSE(messages::parse_kind("join").has_value());
+  EXPECT_FALSE(messages::parse_kind(" ").has_value());
 }
 
 TEST(Subscriber, DecodeRejectsWrongTypeAndTruncation) {
@@ -158,13 +159,13 @@ TEST(Subscriber, DecodeRejectsWrongTypeAndTruncation) {
   p.seq = 77;
   p.position[2] = 0.25;
   const auto b = encode(p);
-  auto m = msg::decode(msg::Kind::kPalmPose, b.data(), b.size());
+  auto m = messages::decode(messages::Kind::kPalmPose, b.data(), b.size());
   ASSERT_TRUE(m.has_value());
-  EXPECT_EQ(msg::kind_of(*m), msg::Kind::kPalmPose);
-  EXPECT_EQ(msg::stamp_of(*m).seq, 77);
+  EXPECT_EQ(messages::kind_of(*m), messages::Kind::kPalmPose);
+  EXPECT_EQ(messages::stamp_of(*m).seq, 77);
   EXPECT_EQ(std::get<exodaq::palm_pose_t>(*m).position[2], 0.25);
-  EXPECT_FALSE(msg::decode(msg::Kind::kJointState, b.data(), b.size()).has_value());
-  EXPECT_FALSE(msg::decode(msg::Kind::kPalmPose, b.data(), b.size() - 1).has_value());
+  EXPECT_FALSE(messages::decode(messages::Kind::kJointState, b.data(), b.size()).has_value());
+  EXPECT_FALSE(messages::decode(messages::Kind::kPalmPose, b.data(), b.size() - 1).has_value());
 }
 
 // The one CSV schema (docs/messages.md "CSV"), golden: a change here is a
@@ -173,11 +174,11 @@ const std::string kNames[6] = {"shoulder_azimuth",  "shoulder_abduction", "shoul
                                "shoulder_rotation", "elbow_flexion",      "forearm_pronation"};
 
 std::string joined(const std::vector<std::string>& v) {
-  return msg::csv::line(v);
+  return messages::csv::line(v);
 }
 
 TEST(CsvSchema, GoldenCycleHeader) {
-  const auto h = msg::csv::cycle_header(msg::csv::joint_columns(kNames));
+  const auto h = messages::csv::cycle_header(messages::csv::joint_columns(kNames));
   EXPECT_EQ(joined(h),
             "utime_us,mono_ns,seq,run_id,"
             "shoulder_azimuth_rad,shoulder_abduction_rad,shoulder_flexion_rad,"
@@ -201,33 +202,34 @@ TEST(CsvSchema, MessagesMdShowsTheCycleHeader) {
   std::ifstream in(std::string(EXODAQ_SOURCE_DIR) + "/docs/messages.md");
   std::stringstream doc;
   doc << in.rdbuf();
-  const std::string header = joined(msg::csv::cycle_header(msg::csv::joint_columns(kNames)));
+  const std::string header =
+      joined(messages::csv::cycle_header(messages::csv::joint_columns(kNames)));
   EXPECT_NE(doc.str().find("\n" + header + "\n"), std::string::npos)
       << "docs/messages.md does not show:\n"
       << header;
 }
 
 TEST(CsvSchema, GoldenHeadersOfEachKind) {
-  const auto j = msg::csv::joint_columns(kNames);
-  const auto joint = msg::csv::header(msg::Kind::kJointState, j);
-  const auto cycle = msg::csv::cycle_header(j);
+  const auto j = messages::csv::joint_columns(kNames);
+  const auto joint = messages::csv::header(messages::Kind::kJointState, j);
+  const auto cycle = messages::csv::cycle_header(j);
   // echo's joint_state_t columns are export's, up to the palm columns.
   ASSERT_LT(joint.size(), cycle.size());
   EXPECT_TRUE(std::equal(joint.begin(), joint.end(), cycle.begin()));
   EXPECT_EQ(joint.back(), "sample_flags");
   // echo's palm_pose_t columns are export's palm columns, after the header.
-  const auto palm = msg::csv::header(msg::Kind::kPalmPose, j);
+  const auto palm = messages::csv::header(messages::Kind::kPalmPose, j);
   EXPECT_EQ(joined(palm),
             "utime_us,mono_ns,seq,run_id,palm_x_m,palm_y_m,palm_z_m,palm_qw,palm_qx,palm_qy,"
             "palm_qz,elbow_x_m,elbow_y_m,elbow_z_m,manipulability,manipulability_raw,"
             "near_singular,palm_valid,palm_invalid_reason");
   EXPECT_TRUE(std::equal(palm.begin() + 4, palm.end(), cycle.begin() + joint.size()));
-  EXPECT_EQ(joined(msg::csv::header(msg::Kind::kEncoderRaw, j)),
+  EXPECT_EQ(joined(messages::csv::header(messages::Kind::kEncoderRaw, j)),
             "utime_us,mono_ns,seq,run_id,present,board_seq,count16_ch0,count16_ch1,count16_ch2,"
             "count16_ch3,count16_ch4,count16_ch5,index_count16_ch0,index_count16_ch1,"
             "index_count16_ch2,index_count16_ch3,index_count16_ch4,index_count16_ch5,"
             "index_latched,index_count_valid,board_state,board_errors,source_flags,wall_ns");
-  const auto status = msg::csv::header(msg::Kind::kStatus, j);
+  const auto status = messages::csv::header(messages::Kind::kStatus, j);
   EXPECT_EQ(status.size(), 4u + 4 + 9 + 27 + 6 * 6);
   EXPECT_EQ(status[4], "rig");
   EXPECT_EQ(status[36], "clock_steps");
@@ -237,8 +239,8 @@ TEST(CsvSchema, GoldenHeadersOfEachKind) {
   EXPECT_EQ(status[44], "shoulder_azimuth_homing");
   EXPECT_EQ(status.back(), "forearm_pronation_out_of_range_events");
   // Every kind: no name twice in one row.
-  for (const auto k : msg::kAllKinds) {
-    auto h = msg::csv::header(k, j);
+  for (const auto k : messages::kAllKinds) {
+    auto h = messages::csv::header(k, j);
     std::sort(h.begin(), h.end());
     EXPECT_EQ(std::adjacent_find(h.begin(), h.end()), h.end());
   }
@@ -263,25 +265,26 @@ TEST(CsvSchema, TextColumnsAreExactlyTheValuesThatAreNotNumbers) {
   exodaq::palm_pose_t pp{};
   exodaq::encoder_raw_t raw{};
   exodaq::homing_t hm{};
-  const std::vector<msg::Message> all{msg::Message{st}, msg::Message{js}, msg::Message{pp},
-                                      msg::Message{raw}, msg::Message{hm}};
+  const std::vector<messages::Message> all{messages::Message{st}, messages::Message{js},
+                                           messages::Message{pp}, messages::Message{raw},
+                                           messages::Message{hm}};
   const auto is_number = [](const std::string& v) {
     char* end = nullptr;
     std::strtod(v.c_str(), &end);
     return !v.empty() && *end == '\0';
   };
   std::size_t text = 0;
-  for (msg::Message m : all) {
+  for (messages::Message m : all) {
     std::visit([&](auto& v) { v.run_id = kRun; }, m);
-    const msg::Kind k = msg::kind_of(m);
-    const auto names = msg::csv::header(k, msg::csv::joints_of(m));
+    const messages::Kind k = messages::kind_of(m);
+    const auto names = messages::csv::header(k, messages::csv::joints_of(m));
     std::vector<std::string> values;
-    msg::csv::append_values(m, values);
+    messages::csv::append_values(m, values);
     ASSERT_EQ(names.size(), values.size());
     for (std::size_t i = 0; i < names.size(); ++i) {
-      EXPECT_EQ(msg::csv::is_text_column(k, names[i]), !is_number(values[i]))
-          << msg::type_name(k) << " column " << names[i] << " = '" << values[i] << "'";
-      text += msg::csv::is_text_column(k, names[i]) ? 1 : 0;
+      EXPECT_EQ(messages::csv::is_text_column(k, names[i]), !is_number(values[i]))
+          << messages::type_name(k) << " column " << names[i] << " = '" << values[i] << "'";
+      text += messages::csv::is_text_column(k, names[i]) ? 1 : 0;
     }
   }
   EXPECT_EQ(text, 9U + 5U);  // status_t's nine, and every kind's run_id
@@ -302,8 +305,8 @@ TEST(CsvSchema, ValuesFollowTheHeader) {
   p.position[2] = -0.297;
   p.valid = 1;
   std::vector<std::string> v;
-  msg::csv::append_cycle(js, &p, v);
-  const auto h = msg::csv::cycle_header(msg::csv::joints_of(msg::Message{js}));
+  messages::csv::append_cycle(js, &p, v);
+  const auto h = messages::csv::cycle_header(messages::csv::joints_of(messages::Message{js}));
   ASSERT_EQ(v.size(), h.size());
   const auto at = [&](const std::string& name) {
     return v[static_cast<std::size_t>(std::find(h.begin(), h.end(), name) - h.begin())];
@@ -319,13 +322,13 @@ TEST(CsvSchema, ValuesFollowTheHeader) {
   EXPECT_EQ(at("palm_valid"), "1");
   // Without a palm message the palm columns are empty.
   v.clear();
-  msg::csv::append_cycle(js, nullptr, v);
+  messages::csv::append_cycle(js, nullptr, v);
   ASSERT_EQ(v.size(), h.size());
   EXPECT_EQ(at("palm_x_m"), "");
   EXPECT_EQ(at("palm_invalid_reason"), "");
   // Joint names that are not column-safe.
   const std::string odd[6] = {"a b", "", "x", "x", "é", "ok"};
-  const auto c = msg::csv::joint_columns(odd);
+  const auto c = messages::csv::joint_columns(odd);
   EXPECT_EQ(c[0], "a_b");
   EXPECT_EQ(c[1], "joint2");
   EXPECT_EQ(c[2], "x");
@@ -335,34 +338,34 @@ TEST(CsvSchema, ValuesFollowTheHeader) {
 }
 
 TEST(CsvSchema, RunIdHasOneSpelling) {
-  EXPECT_EQ(msg::run_id_text(0x5eed), "0000000000005eed");
-  EXPECT_EQ(msg::run_id_text(-0x0123456789abcdefLL), "fedcba9876543211");
-  EXPECT_EQ(msg::parse_run_id("fedcba9876543211"), -0x0123456789abcdefLL);
-  EXPECT_EQ(msg::parse_run_id("0000000000005EED"), 0x5eed);
-  EXPECT_FALSE(msg::parse_run_id("5eed").has_value());
-  EXPECT_FALSE(msg::parse_run_id("000000000000xeed").has_value());
+  EXPECT_EQ(messages::run_id_text(0x5eed), "0000000000005eed");
+  EXPECT_EQ(messages::run_id_text(-0x0123456789abcdefLL), "fedcba9876543211");
+  EXPECT_EQ(messages::parse_run_id("fedcba9876543211"), -0x0123456789abcdefLL);
+  EXPECT_EQ(messages::parse_run_id("0000000000005EED"), 0x5eed);
+  EXPECT_FALSE(messages::parse_run_id("5eed").has_value());
+  EXPECT_FALSE(messages::parse_run_id("000000000000xeed").has_value());
 }
 
 TEST(CsvSchema, NumbersAreExactShortAndNeverMinusZero) {
-  EXPECT_EQ(msg::csv::number(0.1), "0.1");
-  EXPECT_EQ(msg::csv::number(-2.75), "-2.75");
-  EXPECT_EQ(msg::csv::number(1e-6), "1e-06");
-  EXPECT_EQ(msg::csv::number(-0.0), "0");
-  EXPECT_EQ(msg::csv::number(-0.297), "-0.297");
-  EXPECT_EQ(std::stod(msg::csv::number(std::numbers::pi)), std::numbers::pi);
-  EXPECT_EQ(msg::csv::number(std::numeric_limits<double>::quiet_NaN()), "nan");
-  EXPECT_EQ(msg::csv::number(-std::numeric_limits<double>::infinity()), "-inf");
+  EXPECT_EQ(messages::csv::number(0.1), "0.1");
+  EXPECT_EQ(messages::csv::number(-2.75), "-2.75");
+  EXPECT_EQ(messages::csv::number(1e-6), "1e-06");
+  EXPECT_EQ(messages::csv::number(-0.0), "0");
+  EXPECT_EQ(messages::csv::number(-0.297), "-0.297");
+  EXPECT_EQ(std::stod(messages::csv::number(std::numbers::pi)), std::numbers::pi);
+  EXPECT_EQ(messages::csv::number(std::numeric_limits<double>::quiet_NaN()), "nan");
+  EXPECT_EQ(messages::csv::number(-std::numeric_limits<double>::infinity()), "-inf");
 }
 
 TEST(CsvSchema, QuotesOnlyWhenNeededAndSplitsBack) {
-  EXPECT_EQ(msg::csv::escape("plain"), "plain");
-  EXPECT_EQ(msg::csv::escape("a,b"), "\"a,b\"");
-  EXPECT_EQ(msg::csv::escape("say \"hi\""), "\"say \"\"hi\"\"\"");
-  EXPECT_EQ(msg::csv::line({"1", "x,y", ""}), "1,\"x,y\",");
+  EXPECT_EQ(messages::csv::escape("plain"), "plain");
+  EXPECT_EQ(messages::csv::escape("a,b"), "\"a,b\"");
+  EXPECT_EQ(messages::csv::escape("say \"hi\""), "\"say \"\"hi\"\"\"");
+  EXPECT_EQ(messages::csv::line({"1", "x,y", ""}), "1,\"x,y\",");
   std::vector<std::string> back;
-  ASSERT_TRUE(msg::csv::split("1,\"x,y\",,\"say \"\"hi\"\"\"", back));
+  ASSERT_TRUE(messages::csv::split("1,\"x,y\",,\"say \"\"hi\"\"\"", back));
   EXPECT_EQ(back, (std::vector<std::string>{"1", "x,y", "", "say \"hi\""}));
-  EXPECT_FALSE(msg::csv::split("\"open", back));
+  EXPECT_FALSE(messages::csv::split("\"open", back));
 }
 
 // Spaces::kTrim (motion-capture exports, calibration inputs): spaces around an
@@ -370,57 +373,59 @@ TEST(CsvSchema, QuotesOnlyWhenNeededAndSplitsBack) {
 // character; kKeep keeps every space as line() would have written it.
 TEST(CsvSchema, TrimModeDropsSpacesAroundUnquotedValuesOnly) {
   std::vector<std::string> v;
-  ASSERT_TRUE(msg::csv::split(" 1 ,\t\" a, b \", 2\"in ,", v, msg::csv::Spaces::kTrim));
+  ASSERT_TRUE(messages::csv::split(" 1 ,\t\" a, b \", 2\"in ,", v, messages::csv::Spaces::kTrim));
   EXPECT_EQ(v, (std::vector<std::string>{"1", " a, b ", "2\"in", ""}));
-  ASSERT_TRUE(msg::csv::split(" 1 , 2", v));
+  ASSERT_TRUE(messages::csv::split(" 1 , 2", v));
   EXPECT_EQ(v, (std::vector<std::string>{" 1 ", " 2"}));
-  EXPECT_FALSE(msg::csv::split("1, \"open", v, msg::csv::Spaces::kTrim));
+  EXPECT_FALSE(messages::csv::split("1, \"open", v, messages::csv::Spaces::kTrim));
 }
 
 // Strings from the network in a log line or on a terminal (issue 25.10: a
 // foreign status's rig with a line break and ANSI escapes).
 TEST(Printable, EscapesControlCharactersAndKeepsUtf8) {
-  EXPECT_EQ(msg::printable("rig-b"), "rig-b");
-  EXPECT_EQ(msg::printable("evil\nline\x1b[31mred\r\t\x7f"), "evil\\nline\\x1b[31mred\\r\\t\\x7f");
-  EXPECT_EQ(msg::printable(std::string("a\0b", 3)), "a\\x00b");
-  EXPECT_EQ(msg::printable("Zürich µ 日本 🐒"), "Zürich µ 日本 🐒");  // UTF-8 kept
-  EXPECT_EQ(msg::printable("\xc3"), "\\xc3");                       // truncated sequence
-  EXPECT_EQ(msg::printable("\xc0\xaf"), "\\xc0\\xaf");              // overlong '/'
-  EXPECT_EQ(msg::printable("\xed\xa0\x80"), "\\xed\\xa0\\x80");     // a surrogate
-  EXPECT_EQ(msg::printable("\xc2\x9b"
-                           "31m"),
+  EXPECT_EQ(messages::printable("rig-b"), "rig-b");
+  EXPECT_EQ(messages::printable("evil\nline\x1b[31mred\r\t\x7f"),
+            "evil\\nline\\x1b[31mred\\r\\t\\x7f");
+  EXPECT_EQ(messages::printable(std::string("a\0b", 3)), "a\\x00b");
+  EXPECT_EQ(messages::printable("Zürich µ 日本 🐒"), "Zürich µ 日本 🐒");  // UTF-8 kept
+  EXPECT_EQ(messages::printable("\xc3"), "\\xc3");                       // truncated sequence
+  EXPECT_EQ(messages::printable("\xc0\xaf"), "\\xc0\\xaf");              // overlong '/'
+  EXPECT_EQ(messages::printable("\xed\xa0\x80"), "\\xed\\xa0\\x80");     // a surrogate
+  EXPECT_EQ(messages::printable("\xc2\x9b"
+                                "31m"),
             "\\xc2\\x9b"
             "31m");  // C1 CSI
-  const std::string once = msg::printable("x\ny\x1b");
-  EXPECT_EQ(msg::printable(once), once);  // idempotent
+  const std::string once = messages::printable("x\ny\x1b");
+  EXPECT_EQ(messages::printable(once), once);  // idempotent
 }
 
 TEST(Subscriber, FlagNames) {
   using J = exodaq::joint_state_t;
-  EXPECT_EQ(msg::joint_flag_names(0), "-");
-  EXPECT_EQ(msg::joint_flag_names(int32_t{J::JOINT_STALE} | J::JOINT_HELD), "STALE|HELD");
-  EXPECT_EQ(msg::joint_flag_names(J::JOINT_UNHOMED | 0x1000), "UNHOMED|0x1000");
-  EXPECT_EQ(msg::sample_flag_names(int32_t{J::SAMPLE_SEQ_GAP} | J::SAMPLE_LATE), "SEQ_GAP|LATE");
-  EXPECT_EQ(msg::sample_flag_names(J::SAMPLE_NEW_SEGMENT), "NEW_SEGMENT");
+  EXPECT_EQ(messages::joint_flag_names(0), "-");
+  EXPECT_EQ(messages::joint_flag_names(int32_t{J::JOINT_STALE} | J::JOINT_HELD), "STALE|HELD");
+  EXPECT_EQ(messages::joint_flag_names(J::JOINT_UNHOMED | 0x1000), "UNHOMED|0x1000");
+  EXPECT_EQ(messages::sample_flag_names(int32_t{J::SAMPLE_SEQ_GAP} | J::SAMPLE_LATE),
+            "SEQ_GAP|LATE");
+  EXPECT_EQ(messages::sample_flag_names(J::SAMPLE_NEW_SEGMENT), "NEW_SEGMENT");
   EXPECT_EQ(J::SAMPLE_NEW_SEGMENT, 4096);
-  EXPECT_EQ(msg::invalid_reason_names(exodaq::palm_pose_t::INVALID_CLOCK), "CLOCK");
-  EXPECT_EQ(msg::state_name(exodaq::status_t::STATE_FAULT), "FAULT");
-  EXPECT_EQ(msg::bus_state_name(exodaq::status_t::BUS_OFF), "OFF");
-  EXPECT_EQ(msg::homing_name(exodaq::status_t::HOMING_REJECTED), "REJECTED");
+  EXPECT_EQ(messages::invalid_reason_names(exodaq::palm_pose_t::INVALID_CLOCK), "CLOCK");
+  EXPECT_EQ(messages::state_name(exodaq::status_t::STATE_FAULT), "FAULT");
+  EXPECT_EQ(messages::bus_state_name(exodaq::status_t::BUS_OFF), "OFF");
+  EXPECT_EQ(messages::homing_name(exodaq::status_t::HOMING_REJECTED), "REJECTED");
   // The same names into a buffer (the loop's status text), cut short to fit.
   char text[11];
   const std::int32_t stale_held = int32_t{J::JOINT_STALE} | J::JOINT_HELD;
-  EXPECT_EQ(msg::write_joint_flag_names(stale_held, text, sizeof text), 10u);
+  EXPECT_EQ(messages::write_joint_flag_names(stale_held, text, sizeof text), 10u);
   EXPECT_EQ(std::string(text), "STALE|HELD");
-  EXPECT_EQ(msg::write_joint_flag_names(stale_held, text, 6), 5u);
+  EXPECT_EQ(messages::write_joint_flag_names(stale_held, text, 6), 5u);
   EXPECT_EQ(std::string(text), "STALE");
-  EXPECT_EQ(msg::write_sample_flag_names(0, text, sizeof text), 1u);
+  EXPECT_EQ(messages::write_sample_flag_names(0, text, sizeof text), 1u);
   EXPECT_EQ(std::string(text), "-");
   // And one per bit, for JSON arrays.
-  EXPECT_EQ(msg::joint_flag_list(stale_held), (std::vector<std::string>{"STALE", "HELD"}));
-  EXPECT_EQ(msg::joint_flag_list(J::JOINT_GLITCH | 0x1000),
+  EXPECT_EQ(messages::joint_flag_list(stale_held), (std::vector<std::string>{"STALE", "HELD"}));
+  EXPECT_EQ(messages::joint_flag_list(J::JOINT_GLITCH | 0x1000),
             (std::vector<std::string>{"GLITCH", "0x1000"}));
-  EXPECT_TRUE(msg::joint_flag_list(0).empty());
+  EXPECT_TRUE(messages::joint_flag_list(0).empty());
 }
 
 }  // namespace

@@ -13,12 +13,12 @@
 #include <vector>
 
 #include "alloc_counter.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
 #include "exodaq/homing_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "exodaq/status_t.hpp"
 
 using namespace exodaq;
@@ -135,9 +135,9 @@ class StallingSource final : public drivers::EncoderSource {
 class MemorySink final : public core::MessageSink {
  public:
   bool keep = false;
-  std::array<std::int64_t, exodaq::msg::kKindCount> counts{};
+  std::array<std::int64_t, exodaq::messages::kKindCount> counts{};
   std::mutex mutex;
-  std::vector<std::pair<exodaq::msg::Kind, std::vector<std::uint8_t>>> kept;
+  std::vector<std::pair<exodaq::messages::Kind, std::vector<std::uint8_t>>> kept;
   bool publish(const std::string&, const core::OutgoingMessage& msg) noexcept override {
     ++counts[static_cast<std::size_t>(msg.channel)];
     if (keep) {
@@ -149,8 +149,8 @@ class MemorySink final : public core::MessageSink {
   }
 };
 
-config::ServiceConfig sim_config() {
-  return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+settings::ServiceConfig sim_config() {
+  return settings::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
 std::unique_ptr<core::Acquisition> make_acquisition(std::unique_ptr<drivers::EncoderSource> src,
@@ -205,7 +205,7 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
   // that joint's bit in `changed` and its reference from then on.
   std::map<std::int64_t, exodaq::homing_t> homing;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel != exodaq::msg::Kind::kHoming) continue;
+    if (channel != exodaq::messages::Kind::kHoming) continue;
     const auto h = decode<exodaq::homing_t>(bytes);
     EXPECT_TRUE(h.seq % 1000 == 0 || h.changed != 0) << "seq " << h.seq;
     EXPECT_EQ(h.run_id, acq->run_id());
@@ -215,7 +215,7 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
   ASSERT_EQ(homing.count(0), 1U);
   std::array<bool, 6> was_homed{};
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel != exodaq::msg::Kind::kJointState) continue;
+    if (channel != exodaq::messages::Kind::kJointState) continue;
     const auto js = decode<exodaq::joint_state_t>(bytes);
     for (int j = 0; j < 6; ++j) {
       if (js.homed[j] && !was_homed[static_cast<std::size_t>(j)]) {
@@ -231,7 +231,7 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
 
   std::int64_t expected_seq = 0;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel == exodaq::msg::Kind::kJointState) {
+    if (channel == exodaq::messages::Kind::kJointState) {
       const auto js = decode<exodaq::joint_state_t>(bytes);
       EXPECT_EQ(js.seq, expected_seq++);
       EXPECT_EQ(js.run_id, acq->run_id());
@@ -243,7 +243,7 @@ TEST(Acquisition, PublishesEveryChannelEachCycleAndStatusAtTenHertz) {
         EXPECT_TRUE(js.flags[0] & exodaq::joint_state_t::JOINT_UNHOMED);
       }
     }
-    if (channel == exodaq::msg::Kind::kStatus) {
+    if (channel == exodaq::messages::Kind::kStatus) {
       const auto st = decode<exodaq::status_t>(bytes);
       EXPECT_EQ(st.rig, "sim-macaque");
       EXPECT_EQ(st.window_cycles, 100);
@@ -267,7 +267,8 @@ TEST(Acquisition, AFinalStatusAfterAnEmptyWindowRepeatsItsSeq) {
   acq->publisher().drain();
   std::vector<exodaq::status_t> status;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel == exodaq::msg::Kind::kStatus) status.push_back(decode<exodaq::status_t>(bytes));
+    if (channel == exodaq::messages::Kind::kStatus)
+      status.push_back(decode<exodaq::status_t>(bytes));
   }
   ASSERT_EQ(status.size(), 3U);
   EXPECT_EQ(status[0].seq, 99);
@@ -296,13 +297,13 @@ TEST(Acquisition, AForeignRunFlagsEverySampleAndDegradesUntilCleared) {
   run_cycles(*acq, 400, 600);
   int flagged = 0;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel == exodaq::msg::Kind::kJointState) {
+    if (channel == exodaq::messages::Kind::kJointState) {
       const auto js = decode<exodaq::joint_state_t>(bytes);
       const bool foreign = (js.sample_flags & exodaq::joint_state_t::SAMPLE_FOREIGN_RUN) != 0;
       EXPECT_EQ(foreign, js.seq >= 200 && js.seq < 400) << js.seq;
       flagged += foreign ? 1 : 0;
     }
-    if (channel == exodaq::msg::Kind::kStatus) {
+    if (channel == exodaq::messages::Kind::kStatus) {
       const auto st = decode<exodaq::status_t>(bytes);
       const bool during = st.seq >= 299 && st.seq < 400;  // windows wholly inside
       if (during) {
@@ -343,12 +344,12 @@ TEST(Acquisition, ACalibrationReloadStartsOneNewSegment) {
   std::vector<std::int64_t> flagged;
   std::vector<std::string> texts;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel == exodaq::msg::Kind::kJointState) {
+    if (channel == exodaq::messages::Kind::kJointState) {
       const auto js = decode<exodaq::joint_state_t>(bytes);
       if ((js.sample_flags & exodaq::joint_state_t::SAMPLE_NEW_SEGMENT) != 0)
         flagged.push_back(js.seq);
     }
-    if (channel == exodaq::msg::Kind::kStatus)
+    if (channel == exodaq::messages::Kind::kStatus)
       texts.push_back(decode<exodaq::status_t>(bytes).message);
   }
   EXPECT_EQ(flagged, std::vector<std::int64_t>{150});
@@ -411,7 +412,7 @@ TEST(Acquisition, PalmIsValidOnlyWhenHomedAndTheSampleIsPresent) {
   int valid = 0;
   int checked = 0;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel != exodaq::msg::Kind::kPalmPose) continue;
+    if (channel != exodaq::messages::Kind::kPalmPose) continue;
     const auto p = decode<exodaq::palm_pose_t>(bytes);
     ++checked;
     const bool missing = p.seq > 10 && p.seq % 50 == 0;
@@ -493,7 +494,7 @@ TEST(Acquisition, RecordedTimeKeepsTheRecordingsUtimeSeqAndClockVerdict) {
   acq->publisher().drain();
   int joints = 0;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel == exodaq::msg::Kind::kJointState) {
+    if (channel == exodaq::messages::Kind::kJointState) {
       const auto js = decode<exodaq::joint_state_t>(bytes);
       const int i = ++joints;  // sample 0 was published before `keep`
       EXPECT_EQ(js.seq, RecordedSource::seq_of(i));
@@ -501,7 +502,7 @@ TEST(Acquisition, RecordedTimeKeepsTheRecordingsUtimeSeqAndClockVerdict) {
       EXPECT_EQ(js.utime, RecordedSource::wall_of(i) / 1000);
       EXPECT_TRUE(js.sample_flags & exodaq::joint_state_t::SAMPLE_REPLAY) << js.seq;
       EXPECT_FALSE(js.sample_flags & exodaq::joint_state_t::SAMPLE_LATE) << js.seq;
-    } else if (channel == exodaq::msg::Kind::kPalmPose) {
+    } else if (channel == exodaq::messages::Kind::kPalmPose) {
       const auto p = decode<exodaq::palm_pose_t>(bytes);
       // The live run's CLOCK_STEP invalidates; CLOCK_UNSYNC does not under
       // require_sync: ignore (config/sim.yaml).
@@ -510,7 +511,7 @@ TEST(Acquisition, RecordedTimeKeepsTheRecordingsUtimeSeqAndClockVerdict) {
       if (p.seq >= 5) {
         EXPECT_EQ(p.valid, p.seq != 205) << p.seq;
       }
-    } else if (channel == exodaq::msg::Kind::kStatus) {
+    } else if (channel == exodaq::messages::Kind::kStatus) {
       const auto st = decode<exodaq::status_t>(bytes);
       EXPECT_EQ(st.clock_steps, 0);
       EXPECT_EQ(st.utime_correction_us, 0.0);
@@ -536,7 +537,7 @@ TEST(Acquisition, ThreadedLoopPlaysARecordingToItsEnd) {
     EXPECT_EQ(sink->counts[0], 600) << "speed " << speed;
     std::int64_t last_seq = -1;
     for (const auto& [channel, bytes] : sink->kept) {
-      if (channel == exodaq::msg::Kind::kJointState)
+      if (channel == exodaq::messages::Kind::kJointState)
         last_seq = decode<exodaq::joint_state_t>(bytes).seq;
     }
     EXPECT_EQ(last_seq, RecordedSource::seq_of(599));
@@ -572,11 +573,11 @@ TEST(Acquisition, AStalledReadIsCountedAsOverrunsAndItsSampleIsLate) {
   std::int64_t late = 0;
   exodaq::status_t last_status;
   for (const auto& [channel, bytes] : sink->kept) {
-    if (channel == exodaq::msg::Kind::kStatus) {
+    if (channel == exodaq::messages::Kind::kStatus) {
       last_status = decode<exodaq::status_t>(bytes);
       continue;
     }
-    if (channel != exodaq::msg::Kind::kJointState) continue;
+    if (channel != exodaq::messages::Kind::kJointState) continue;
     const auto js = decode<exodaq::joint_state_t>(bytes);
     if (js.sample_flags & exodaq::joint_state_t::SAMPLE_LATE) ++late;
     if (js.seq == stalled_at)

@@ -10,7 +10,6 @@
 #include <vector>
 
 #include "alloc_counter.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/builder.hpp"
 #include "exodaq/core/config_handover.hpp"
 #include "exodaq/core/health.hpp"
@@ -18,6 +17,7 @@
 #include "exodaq/core/message_encoder.hpp"
 #include "exodaq/core/status_assembler.hpp"
 #include "exodaq/core/time_base.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 using namespace exodaq;
 namespace flag = drivers::sample_flag;
@@ -25,8 +25,8 @@ namespace flag = drivers::sample_flag;
 namespace {
 constexpr std::int64_t kMs = 1'000'000;
 
-config::ServiceConfig sim_config() {
-  return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+settings::ServiceConfig sim_config() {
+  return settings::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
 // A source that only carries a recording's speed and seq.
@@ -108,8 +108,8 @@ TEST(TimeBase, LiveStampsWallTimeAndFlagsAnUnsynchronisedClockByPolicy) {
   clock.offset_ns = 1'700'000'000'000'000'000LL;
   clock.offset_generation = 1;
   clock.synchronised = false;
-  config::ClockPolicy policy;
-  policy.require_sync = config::RequireSync::kMark;
+  settings::ClockPolicy policy;
+  policy.require_sync = settings::RequireSync::kMark;
   const auto loop_clock = core::make_monotonic_loop_clock();
   core::LiveTimeBase live(clock, policy, kMs, *loop_clock);
   drivers::EncoderSample s;
@@ -119,14 +119,14 @@ TEST(TimeBase, LiveStampsWallTimeAndFlagsAnUnsynchronisedClockByPolicy) {
   EXPECT_EQ(t.flags, flag::kClockUnsync);
   EXPECT_FALSE(t.clock_invalid);
   EXPECT_FALSE(t.clock_hold);
-  policy.require_sync = config::RequireSync::kHold;
+  policy.require_sync = settings::RequireSync::kHold;
   live.set_policy(policy);
   s.mono_ns += kMs;
   t = live.stamp(s);
   EXPECT_EQ(t.flags, flag::kClockUnsync);
   EXPECT_TRUE(t.clock_invalid);
   EXPECT_TRUE(t.clock_hold);
-  policy.require_sync = config::RequireSync::kIgnore;
+  policy.require_sync = settings::RequireSync::kIgnore;
   live.set_policy(policy);
   s.mono_ns += kMs;
   t = live.stamp(s);
@@ -150,8 +150,8 @@ TEST(TimeBase, LiveStampsWallTimeAndFlagsAnUnsynchronisedClockByPolicy) {
 
 TEST(TimeBase, RecordedKeepsTheRecordingsTimeSeqAndClockVerdict) {
   Recording recording;
-  config::ClockPolicy policy;
-  policy.require_sync = config::RequireSync::kMark;
+  settings::ClockPolicy policy;
+  policy.require_sync = settings::RequireSync::kMark;
   const auto loop_clock = core::make_monotonic_loop_clock();
   core::RecordedTimeBase recorded(recording, 0.0, policy, *loop_clock);
   EXPECT_EQ(recorded.seq(7), 7);  // no recorded seq: the loop's count
@@ -170,7 +170,7 @@ TEST(TimeBase, RecordedKeepsTheRecordingsTimeSeqAndClockVerdict) {
   EXPECT_TRUE(recorded.stamp(s).clock_invalid);
   s.flags = flag::kClockUnsync;
   EXPECT_FALSE(recorded.stamp(s).clock_invalid);
-  policy.require_sync = config::RequireSync::kHold;
+  policy.require_sync = settings::RequireSync::kHold;
   recorded.set_policy(policy);
   EXPECT_TRUE(recorded.stamp(s).clock_invalid);
   EXPECT_FALSE(recorded.stamp(s).clock_hold);
@@ -376,8 +376,8 @@ TEST(MessageEncoder, PalmFirstThenJointsThenRawAllocatingNothing) {
     }
     publisher.drain();
     ASSERT_EQ(kept->kept.size(), raw ? 3U : 2U);
-    EXPECT_EQ(kept->kept[0].channel, msg::Kind::kPalmPose);
-    EXPECT_EQ(kept->kept[1].channel, msg::Kind::kJointState);
+    EXPECT_EQ(kept->kept[0].channel, messages::Kind::kPalmPose);
+    EXPECT_EQ(kept->kept[1].channel, messages::Kind::kJointState);
     const auto palm = decode<exodaq::palm_pose_t>(kept->kept[0]);
     EXPECT_EQ(palm.seq, 9);
     EXPECT_EQ(palm.run_id, 77);
@@ -391,7 +391,7 @@ TEST(MessageEncoder, PalmFirstThenJointsThenRawAllocatingNothing) {
     EXPECT_EQ(js.flags[2], static_cast<std::int32_t>(core::joint_flag::kStale));
     for (const auto& m : kept->kept) EXPECT_EQ(m.utime_us, r.utime_us);
     if (raw) {
-      EXPECT_EQ(kept->kept[2].channel, msg::Kind::kEncoderRaw);
+      EXPECT_EQ(kept->kept[2].channel, messages::Kind::kEncoderRaw);
       const auto er = decode<exodaq::encoder_raw_t>(kept->kept[2]);
       EXPECT_EQ(er.seq, 9);
       EXPECT_EQ(static_cast<std::uint16_t>(er.count16[4]), 4321);

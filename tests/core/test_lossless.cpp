@@ -16,7 +16,6 @@
 #include <vector>
 
 #include "alloc_counter.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
@@ -25,6 +24,7 @@
 #include "exodaq/drivers/socketcan_source.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "memory_can_port.hpp"
 
 using namespace exodaq;
@@ -106,10 +106,10 @@ class KeepingSink final : public core::MessageSink {
   bool publish(const std::string&, const core::OutgoingMessage& m) noexcept override {
     try {
       std::lock_guard<std::mutex> lock(mutex);
-      if (m.channel == msg::Kind::kJointState) {
+      if (m.channel == messages::Kind::kJointState) {
         joints.emplace_back();
         joints.back().decode(m.bytes.data(), 0, static_cast<int>(m.size));
-      } else if (m.channel == msg::Kind::kEncoderRaw) {
+      } else if (m.channel == messages::Kind::kEncoderRaw) {
         raws.emplace_back();
         raws.back().decode(m.bytes.data(), 0, static_cast<int>(m.size));
       }
@@ -130,8 +130,8 @@ class CountingSink final : public core::MessageSink {
   }
 };
 
-config::ServiceConfig sim_config() {
-  return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+settings::ServiceConfig sim_config() {
+  return settings::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
 struct LoopRun {
@@ -152,7 +152,7 @@ LoopRun run_loop(std::unique_ptr<drivers::EncoderSource> source,
   wiring.channel_prefix = "";
   wiring.realtime = false;
   wiring.loop_clock = std::move(clock);
-  config::ServiceConfig c = sim_config();
+  settings::ServiceConfig c = sim_config();
   c.clock.require_sync = core::RequireSync::kIgnore;
   r.acq = core::build_acquisition(c, std::move(wiring));
   clock_ref.acq = r.acq.get();
@@ -163,8 +163,9 @@ LoopRun run_loop(std::unique_ptr<drivers::EncoderSource> source,
 }
 
 std::unique_ptr<drivers::SimSource> free_running_sim(double drift_ppm, double phase) {
-  const config::ServiceConfig c = sim_config();
-  drivers::sim::SimOptions o = drivers::sim_options_from(c.source, config::make_source_context(c));
+  const settings::ServiceConfig c = sim_config();
+  drivers::sim::SimOptions o =
+      drivers::sim_options_from(c.source, settings::make_source_context(c));
   o.board_clock.free_running = true;
   o.board_clock.drift_ppm = drift_ppm;
   o.board_clock.phase_ns = static_cast<std::int64_t>(phase * static_cast<double>(kMs));

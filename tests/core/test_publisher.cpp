@@ -245,7 +245,7 @@ class FlakySink final : public core::MessageSink {
 void send_one(core::Publisher& p, std::int64_t seq) {
   core::OutgoingMessage* slot = p.acquire();
   ASSERT_NE(slot, nullptr);
-  slot->channel = msg::Kind::kPalmPose;
+  slot->channel = messages::Kind::kPalmPose;
   slot->size = 4;
   slot->seq = seq;
   slot->utime_us = 1'000'000 + seq;

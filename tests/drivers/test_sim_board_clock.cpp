@@ -8,7 +8,7 @@
 #include <string>
 
 #include "alloc_counter.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 
@@ -42,9 +42,8 @@ CycleTime at(std::int64_t deadline, std::int64_t now) {
 }
 
 std::shared_ptr<const exodaq::drivers::SimSourceSettings> parse(const std::string& yaml) {
-  exodaq::config::MapReader src("cfg.yaml", exodaq::config::load_yaml_text(yaml, "cfg.yaml"),
-                                "source");
-  exodaq::config::MapReader s = src.map("sim");
+  exodaq::MapReader src("cfg.yaml", exodaq::load_yaml_text(yaml, "cfg.yaml"), "source");
+  exodaq::MapReader s = src.map("sim");
   return std::dynamic_pointer_cast<const exodaq::drivers::SimSourceSettings>(
       exodaq::drivers::sim_backend().parse(&s, src, true));
 }
@@ -231,7 +230,7 @@ TEST(SimBoardClock, ConfigKeysAndTheirErrors) {
   const auto error_of = [](const std::string& yaml) {
     try {
       parse(yaml);
-    } catch (const exodaq::config::ConfigError& e) {
+    } catch (const exodaq::ConfigError& e) {
       return std::string(e.what());
     }
     return std::string("no error");

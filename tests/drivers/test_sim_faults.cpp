@@ -9,7 +9,7 @@
 #include <set>
 #include <string>
 
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 
@@ -25,7 +25,7 @@ using Kind = sim::SimFault::Kind;
 namespace {
 
 sim::SimFault parse(const std::string& yaml) {
-  exodaq::config::MapReader m("fault", exodaq::config::load_yaml_text(yaml, "fault"), "fault");
+  exodaq::MapReader m("fault", exodaq::load_yaml_text(yaml, "fault"), "fault");
   return exodaq::drivers::parse_sim_fault(m);
 }
 
@@ -74,14 +74,14 @@ TEST(SimFaultVocabulary, ParsesTheBoardSimulatorKindsAndRefusesForeignParameters
   try {
     parse("{kind: drop, percent: 10, joint: 2, at_s: 1}");
     FAIL() << "a drop with a joint was accepted";
-  } catch (const exodaq::config::ConfigError& err) {
+  } catch (const exodaq::ConfigError& err) {
     EXPECT_NE(std::string(err.what()).find("a drop fault takes no joint"), std::string::npos)
         << err.what();
   }
-  EXPECT_THROW(parse("{kind: glitch, every: 3, at_s: 1}"), exodaq::config::ConfigError);
-  EXPECT_THROW(parse("{kind: bad_seq, every: 0, at_s: 1}"), exodaq::config::ConfigError);
-  EXPECT_THROW(parse("{kind: delay, delay_us: -1, at_s: 1}"), exodaq::config::ConfigError);
-  EXPECT_THROW(parse("{kind: jitter, at_s: 1}"), exodaq::config::ConfigError);
+  EXPECT_THROW(parse("{kind: glitch, every: 3, at_s: 1}"), exodaq::ConfigError);
+  EXPECT_THROW(parse("{kind: bad_seq, every: 0, at_s: 1}"), exodaq::ConfigError);
+  EXPECT_THROW(parse("{kind: delay, delay_us: -1, at_s: 1}"), exodaq::ConfigError);
+  EXPECT_THROW(parse("{kind: jitter, at_s: 1}"), exodaq::ConfigError);
   // A delay of four periods or more is refused by the rig.
   sim::SimFault too_late = window(Kind::kDelay, 10, 10);
   too_late.delay_us = 4000;

@@ -15,13 +15,14 @@
 #include <string>
 
 #include "alloc_counter.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/sim_task.hpp"
+#include "exodaq/settings/service_config.hpp"
+#include "source_sections.hpp"
 
 namespace sim = exodaq::drivers::sim;
-namespace config = exodaq::config;
+namespace settings = exodaq::settings;
 using exodaq::drivers::CycleTime;
 using exodaq::drivers::EncoderSample;
 using exodaq::drivers::SimSource;
@@ -32,20 +33,20 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 const std::string kConfigDir = std::string(EXODAQ_SOURCE_DIR) + "/config/";
 
-config::ServiceConfig sim_config() {
-  return config::load_service_config(kConfigDir + "sim.yaml");
+settings::ServiceConfig sim_config() {
+  return settings::load_service_config(kConfigDir + "sim.yaml");
 }
 
-sim::SimOptions options_of(const config::ServiceConfig& cfg) {
-  return exodaq::drivers::sim_options_from(cfg.source, config::make_source_context(cfg));
+sim::SimOptions options_of(const settings::ServiceConfig& cfg) {
+  return exodaq::drivers::sim_options_from(cfg.source, settings::make_source_context(cfg));
 }
 
 // config/sim.yaml with another task file (written next to nothing: absolute paths).
-config::ServiceConfig config_with_task(const std::string& task_yaml) {
+settings::ServiceConfig config_with_task(const std::string& task_yaml) {
   const std::string dir = "/tmp/exodaq-task-test-" + std::to_string(getpid());
   std::ofstream(dir + "-task.yaml") << task_yaml;
   auto cfg = sim_config();
-  auto& s = exodaq::drivers::edit_section<SimSourceSettings>(cfg.source, "sim");
+  auto& s = exodaq::test::edit_section<SimSourceSettings>(cfg.source, "sim");
   s.task_path = dir + "-task.yaml";
   s.task = std::make_shared<const sim::SimTaskFile>(sim::load_sim_task(s.task_path));
   s.motion = "task";
@@ -164,9 +165,9 @@ TEST(SimTask, EveryStopReachesItsPalmTarget) {
     // ...whose palm is at the stop's target (the file's, or drawn in the
     // random box): the position exactly, the orientation turned by the
     // adjustment that made it reachable (small for the file's own targets).
-    exodaq::kin::JointVector q(6);
+    exodaq::kinematics::JointVector q(6);
     for (int j = 0; j < 6; ++j) q[j] = stop.posture[static_cast<std::size_t>(j)];
-    const exodaq::kin::Pose palm = cfg.model.chain.palm(q);
+    const exodaq::kinematics::Pose palm = cfg.model.chain.palm(q);
     EXPECT_LT((palm.translation() - stop.target.translation()).norm(), 1e-7) << step.name;
     const double turn = Eigen::AngleAxisd(palm.linear() * step.rotation.transpose()).angle();
     EXPECT_NEAR(turn, stop.adjust_rad, 1e-7) << step.name;
@@ -270,7 +271,7 @@ TEST(SimTask, BadTaskFilesAreFileLineErrors) {
     try {
       const auto cfg = config_with_task(text);
       const sim::SimRig rig(options_of(cfg));
-    } catch (const config::ConfigError& e) {
+    } catch (const exodaq::ConfigError& e) {
       return std::to_string(e.line()) + ": " + e.reason();
     }
     return "accepted";
@@ -302,7 +303,7 @@ TEST(SimTask, BadTaskFilesAreFileLineErrors) {
 
 TEST(SimTask, TheHandMadeCurvesStayAvailable) {
   auto cfg = sim_config();
-  exodaq::drivers::edit_section<SimSourceSettings>(cfg.source, "sim").motion = "curves";
+  exodaq::test::edit_section<SimSourceSettings>(cfg.source, "sim").motion = "curves";
   const sim::SimRig rig(options_of(cfg));
   EXPECT_EQ(rig.motion().task_plan(), nullptr);
   EXPECT_EQ(rig.motion().trip_segments().size(), 16U * 7U);

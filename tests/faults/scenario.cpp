@@ -13,7 +13,7 @@ class KeepingSink final : public core::MessageSink {
   bool publish(const std::string&, const core::OutgoingMessage& m) noexcept override {
     try {
       switch (m.channel) {
-        case exodaq::msg::Kind::kJointState: {
+        case exodaq::messages::Kind::kJointState: {
           exodaq::joint_state_t js;
           js.decode(m.bytes.data(), 0, static_cast<int>(m.size));
           if (static_cast<std::size_t>(js.seq) >= out->cycles.size()) {
@@ -22,7 +22,7 @@ class KeepingSink final : public core::MessageSink {
           out->cycles[static_cast<std::size_t>(js.seq)].joint = js;
           break;
         }
-        case exodaq::msg::Kind::kPalmPose: {
+        case exodaq::messages::Kind::kPalmPose: {
           exodaq::palm_pose_t p;
           p.decode(m.bytes.data(), 0, static_cast<int>(m.size));
           if (static_cast<std::size_t>(p.seq) >= out->cycles.size()) {
@@ -31,14 +31,14 @@ class KeepingSink final : public core::MessageSink {
           out->cycles[static_cast<std::size_t>(p.seq)].palm = p;
           break;
         }
-        case exodaq::msg::Kind::kStatus: {
+        case exodaq::messages::Kind::kStatus: {
           exodaq::status_t s;
           s.decode(m.bytes.data(), 0, static_cast<int>(m.size));
           out->statuses.push_back(s);
           break;
         }
-        case exodaq::msg::Kind::kEncoderRaw:
-        case exodaq::msg::Kind::kHoming:
+        case exodaq::messages::Kind::kEncoderRaw:
+        case exodaq::messages::Kind::kHoming:
           break;
       }
     } catch (...) {
@@ -49,21 +49,21 @@ class KeepingSink final : public core::MessageSink {
 };
 }  // namespace
 
-config::ServiceConfig sim_config() {
-  return config::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
+settings::ServiceConfig sim_config() {
+  return settings::load_service_config(std::string(EXODAQ_SOURCE_DIR) + "/config/sim.yaml");
 }
 
-ScenarioResult run_scenario(const config::ServiceConfig& config, double seconds,
-                            const config::ServiceConfig* rig) {
+ScenarioResult run_scenario(const settings::ServiceConfig& config, double seconds,
+                            const settings::ServiceConfig* rig) {
   ScenarioResult r;
   r.config = config;
-  const config::ServiceConfig& rig_side = rig != nullptr ? *rig : config;
-  auto source = drivers::make_source(rig_side.source, config::make_source_context(rig_side));
+  const settings::ServiceConfig& rig_side = rig != nullptr ? *rig : config;
+  auto source = drivers::make_source(rig_side.source, settings::make_source_context(rig_side));
   r.sim = dynamic_cast<const drivers::SimSource*>(source.get());
   if (r.sim == nullptr) throw std::runtime_error("scenario needs the sim backend");
   auto sink = std::make_unique<KeepingSink>();
   sink->out = &r;
-  config::ServiceConfig daemon_side = config;
+  settings::ServiceConfig daemon_side = config;
   daemon_side.clock.require_sync = core::RequireSync::kIgnore;
   core::AcquisitionOptions wiring;
   wiring.source = std::move(source);

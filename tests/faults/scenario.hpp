@@ -7,13 +7,13 @@
 #include <string>
 #include <vector>
 
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "exodaq/status_t.hpp"
 
 namespace exodaq::test {
@@ -28,7 +28,7 @@ struct ScenarioResult {
   std::vector<exodaq::status_t> statuses;
   const drivers::SimSource* sim = nullptr;
   std::unique_ptr<core::Acquisition> acquisition;  // keeps the sim alive
-  config::ServiceConfig config;
+  settings::ServiceConfig config;
   double rad_per_count(int j) const {
     return 2.0 * M_PI /
            (static_cast<double>(config.encoders.counts_per_rev()) *
@@ -45,11 +45,11 @@ struct ScenarioResult {
   const exodaq::status_t& last_status() const { return statuses.back(); }
 };
 
-config::ServiceConfig sim_config();
+settings::ServiceConfig sim_config();
 // `rig` configures the simulated rig (encoders, index angles from its
 // calibration, faults); `daemon` the pipeline. Usually the same.
-ScenarioResult run_scenario(const config::ServiceConfig& daemon, double seconds,
-                            const config::ServiceConfig* rig = nullptr);
+ScenarioResult run_scenario(const settings::ServiceConfig& daemon, double seconds,
+                            const settings::ServiceConfig* rig = nullptr);
 
 // Seconds into the run when the simulated operator has homed every joint.
 inline constexpr double kHomedBy = 11.0;

@@ -17,12 +17,12 @@
 #include <thread>
 #include <vector>
 
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
 #include "recording.hpp"
@@ -164,8 +164,8 @@ TEST(ProcessFault, CpuStressOnBothCoresLosesNothingUncountedAndValidStaysRight) 
   EXPECT_LE(last.seq_gaps, last.overruns);
 
   // Valid means right: every sample of a valid palm pose within one count.
-  const auto cfg = config::load_service_config(config);
-  auto source = drivers::make_source(cfg.source, config::make_source_context(cfg));
+  const auto cfg = settings::load_service_config(config);
+  auto source = drivers::make_source(cfg.source, settings::make_source_context(cfg));
   const auto* sim = dynamic_cast<const drivers::SimSource*>(source.get());
   ASSERT_NE(sim, nullptr);
   const double one_count = 2.0 * M_PI / 10000.0;  // gear ratio 1 on every joint of sim.yaml
@@ -427,7 +427,7 @@ TEST(ProcessFault, FreeRunningBoardThroughALoopStallLosesNothing) {
   EXPECT_EQ(last.seq_gaps, 0);
   // The daemon's final line: nothing superseded (the sim's queue held every sample).
   const std::string log = test::read_file(dir + "/d.err") + test::read_file(dir + "/d.out");
-  EXPECT_NE(log.find(" caught up after a late wake, 0 superseded, 0 late SYNCs)"),
+  EXPECT_NE(log.find(" caught up after a late wake, 0 superseded, 0 late SYNCs; "),
             std::string::npos)
       << log;
   std::printf(

@@ -12,6 +12,7 @@
 #include "matrix_checks.hpp"
 #include "process.hpp"
 #include "sim_daemon.hpp"
+#include "source_sections.hpp"
 
 using exodaq::joint_state_t;
 using exodaq::palm_pose_t;
@@ -73,7 +74,7 @@ TEST(SimMatrix, OnePercentFrameLossIsCountedExactlyAndNeverValid) {
   auto cfg = sim_config();
   SimFault f = fault(SimFault::Kind::kDrop, 12.0, 10.0);
   f.percent = 1.0;
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(f);
   const auto r = run_scenario(cfg, 23.0);
   // The cycles the simulator dropped, and the runs of them (one seq gap each).
@@ -116,7 +117,7 @@ TEST(SimMatrix, ReorderedCountFramesAreDroppedAsOutOfOrderAndTheCycleMissing) {
   // From 12.0 s for 100 ms, every other cycle's COUNTS_A/B reach the bus after
   // the next cycle's: cycles 12000, 12002, ..., 12098 (50 pairs).
   auto cfg = sim_config();
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(fault(SimFault::Kind::kReorder, 12.0, 0.1));
   const auto r = run_scenario(cfg, 14.0);
   const auto& s = r.last_status();
@@ -151,7 +152,7 @@ TEST(SimMatrix, ABadSequenceByteDropsTheCycleAsOutOfOrder) {
   auto cfg = sim_config();
   const auto bad = every(12001, 12451, 50);
   for (const std::int64_t k : bad)
-    exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+    exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
         .faults.push_back(one_cycle(SimFault::Kind::kBadSeq, k));
   const auto r = run_scenario(cfg, 14.0);
   const auto& s = r.last_status();
@@ -179,7 +180,7 @@ TEST(SimMatrix, AWrongDlcCountFrameIsABadFrameAndAPartialSample) {
   auto cfg = sim_config();
   const auto bad = every(12001, 12451, 50);
   for (const std::int64_t k : bad) {
-    exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+    exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
         .faults.push_back(one_cycle(SimFault::Kind::kWrongDlc, k));
   }
   const auto r = run_scenario(cfg, 14.0);
@@ -211,7 +212,8 @@ TEST(SimMatrix, TheNewFaultKindsAreAvailableFromTheServiceConfig) {
                              "      - {kind: bad_seq, at_s: 13, for_s: 0.001}\n"
                              "      - {kind: wrong_dlc, at_s: 14, for_s: 0.001}\n");
   const std::string dir = exodaq::test::make_temp_dir("matrix");
-  const auto cfg = exodaq::config::load_service_config(exodaq::test::write_config_text(dir, yaml));
+  const auto cfg =
+      exodaq::settings::load_service_config(exodaq::test::write_config_text(dir, yaml));
   std::filesystem::remove_all(dir);
   ASSERT_EQ(cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->faults.size(), 3u);
   EXPECT_EQ(cfg.source.section_as<exodaq::drivers::SimSourceSettings>("sim")->faults[0].kind,

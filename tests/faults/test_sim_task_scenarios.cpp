@@ -12,6 +12,7 @@
 #include "exodaq/drivers/sim_task.hpp"
 #include "matrix_checks.hpp"
 #include "scenario.hpp"
+#include "source_sections.hpp"
 
 using exodaq::joint_state_t;
 using exodaq::drivers::sim::SimFault;
@@ -40,7 +41,7 @@ std::vector<std::int64_t> index_crossings(const ScenarioResult& r, int j, std::i
 double seconds_for_one_trial() {
   const auto cfg = sim_config();
   const exodaq::drivers::sim::SimRig rig(
-      exodaq::drivers::sim_options_from(cfg.source, exodaq::config::make_source_context(cfg)));
+      exodaq::drivers::sim_options_from(cfg.source, exodaq::settings::make_source_context(cfg)));
   // The second trial starts when the arm is back on the table (stop 4).
   return rig.motion().homing_end_s() + rig.motion().task_plan()->stops.at(4).arrive_s + 0.5;
 }
@@ -76,7 +77,7 @@ TEST(SimTaskScenario, LostCountsOnJointTwoAreCaughtAtItsNextIndexCrossing) {
   f.start_s = 13.0;
   f.joint = 1;
   f.counts = -5;
-  exodaq::drivers::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
+  exodaq::test::edit_section<exodaq::drivers::SimSourceSettings>(cfg.source, "sim")
       .faults.push_back(f);
   const auto r = run_scenario(cfg, seconds_for_one_trial());
   const auto& s = r.last_status();

@@ -9,11 +9,11 @@
 #include <optional>
 #include <string>
 
-#include "exodaq/config/calibration_file.hpp"
-#include "exodaq/config/model_file.hpp"
+#include "exodaq/settings/calibration_file.hpp"
+#include "exodaq/settings/model_file.hpp"
 #include "fuzz_input.hpp"
 
-namespace config = exodaq::config;
+namespace settings = exodaq::settings;
 
 namespace {
 
@@ -24,7 +24,7 @@ bool close(double x, double y) {
   return std::fabs(x - y) <= 4 * std::numeric_limits<double>::epsilon() * scale + 1e-300;
 }
 
-bool same(const config::Calibration& a, const config::Calibration& b) {
+bool same(const settings::Calibration& a, const settings::Calibration& b) {
   const auto eq = [](double x, double y) { return close(x, y); };
   const auto eq_opt = [](const std::optional<double>& x, const std::optional<double>& y) {
     return x.has_value() == y.has_value() && (!x || close(*x, *y));
@@ -56,9 +56,9 @@ bool same(const config::Calibration& a, const config::Calibration& b) {
          eq_opt(a.provenance.rms_after_m, b.provenance.rms_after_m);
 }
 
-const exodaq::kin::Chain& nominal() {
-  static const config::KinematicModel m =
-      config::load_model_file(std::string(EXODAQ_SOURCE_DIR) + "/config/models/macaque_exo.yaml");
+const exodaq::kinematics::Chain& nominal() {
+  static const settings::KinematicModel m =
+      settings::load_model_file(std::string(EXODAQ_SOURCE_DIR) + "/config/models/macaque_exo.yaml");
   return m.chain;
 }
 
@@ -66,24 +66,24 @@ const exodaq::kin::Chain& nominal() {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size > 16384) return 0;
-  config::Calibration cal;
+  settings::Calibration cal;
   try {
-    cal = config::load_calibration_text(exodaq::fuzz::as_text(data, size), "fuzz.yaml");
-  } catch (const config::ConfigError& e) {
+    cal = settings::load_calibration_text(exodaq::fuzz::as_text(data, size), "fuzz.yaml");
+  } catch (const exodaq::ConfigError& e) {
     FUZZ_CHECK(e.file() == "fuzz.yaml");
     FUZZ_CHECK(e.line() >= 0);
     return 0;
   }
-  const std::string text = config::calibration_to_yaml(cal);
-  config::Calibration again;
+  const std::string text = settings::calibration_to_yaml(cal);
+  settings::Calibration again;
   try {
-    again = config::load_calibration_text(text, "written.yaml");
-  } catch (const config::ConfigError& e) {
+    again = settings::load_calibration_text(text, "written.yaml");
+  } catch (const exodaq::ConfigError& e) {
     std::fprintf(stderr, "calibration_to_yaml() wrote what the loader rejects: %s\n---\n%s---\n",
                  e.what(), text.c_str());
     FUZZ_CHECK(false);
   }
   FUZZ_CHECK(same(cal, again));
-  (void)config::apply_calibration(nominal(), cal);
+  (void)settings::apply_calibration(nominal(), cal);
   return 0;
 }

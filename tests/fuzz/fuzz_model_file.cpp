@@ -2,19 +2,19 @@
 // behaviour (model_file.hpp, docs/kinematics.md): a KinematicModel or a
 // ConfigError "file:line: what"; nothing else. A model it accepts can be
 // evaluated at its home posture, which lies within its joint limits.
-#include "exodaq/config/model_file.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
+#include "exodaq/settings/model_file.hpp"
 #include "fuzz_input.hpp"
 
-namespace config = exodaq::config;
-namespace kin = exodaq::kin;
+namespace settings = exodaq::settings;
+namespace kinematics = exodaq::kinematics;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size > 16384) return 0;
-  config::KinematicModel model;
+  settings::KinematicModel model;
   try {
-    model = config::load_model_text(exodaq::fuzz::as_text(data, size), "fuzz.yaml");
-  } catch (const config::ConfigError& e) {
+    model = settings::load_model_text(exodaq::fuzz::as_text(data, size), "fuzz.yaml");
+  } catch (const exodaq::ConfigError& e) {
     FUZZ_CHECK(e.file() == "fuzz.yaml");
     FUZZ_CHECK(e.line() >= 0);
     return 0;
@@ -27,7 +27,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     FUZZ_CHECK(lim.lower < lim.upper);
     FUZZ_CHECK(model.home_posture[i] >= lim.lower && model.home_posture[i] <= lim.upper);
   }
-  kin::RigPose pose;
-  kin::evaluate_rig(model.chain, model.rig, model.home_posture, pose);
+  kinematics::RigPose pose;
+  kinematics::evaluate_rig(model.chain, model.rig, model.home_posture, pose);
   return 0;
 }

@@ -7,11 +7,11 @@
 // accepts yields a pipeline configuration, a source context and a dump.
 #include <string>
 
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/builder.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "fuzz_input.hpp"
 
-namespace config = exodaq::config;
+namespace settings = exodaq::settings;
 namespace core = exodaq::core;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -22,16 +22,16 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (text.find(device) != std::string::npos) return 0;
   }
   static const std::string name = std::string(EXODAQ_SOURCE_DIR) + "/config/fuzz.yaml";
-  config::ServiceConfig c;
+  settings::ServiceConfig c;
   try {
-    c = config::load_service_config_text(text, name);
-  } catch (const config::ConfigError& e) {
+    c = settings::load_service_config_text(text, name);
+  } catch (const exodaq::ConfigError& e) {
     FUZZ_CHECK(e.line() >= 0);
     return 0;
   }
   FUZZ_CHECK(c.model.chain.joint_count() == 6);
   FUZZ_CHECK(core::make_pipeline_config(c) != nullptr);
-  (void)config::make_source_context(c);
-  FUZZ_CHECK(!config::to_yaml(c).empty());
+  (void)settings::make_source_context(c);
+  FUZZ_CHECK(!settings::to_yaml(c).empty());
   return 0;
 }

@@ -60,13 +60,13 @@ exodaq::encoder_raw_t raw_message(std::int64_t seq) {
 
 template <typename T>
 Buf encoded(const T& m) {
-  return exodaq::msg::encode(m);
+  return exodaq::messages::encode(m);
 }
 
 void write_lcm_log(const fs::path& path, const std::vector<std::pair<std::string, Buf>>& events) {
   fs::create_directories(path.parent_path());
   fs::remove(path);
-  exodaq::msg::LogWriter log(path);
+  exodaq::messages::LogWriter log(path);
   std::int64_t t = 1'700'000'000'000'000;
   for (const auto& [channel, data] : events)
     log.write(channel, t += 1000, data.data(), data.size());

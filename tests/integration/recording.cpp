@@ -28,7 +28,7 @@ std::vector<RecordedMessage> read_recorder_file(const std::string& path) {
 
 std::vector<RecordedMessage> read_lcm_log(const std::string& path) {
   std::vector<RecordedMessage> out;
-  for (auto& e : msg::read_log(path)) {
+  for (auto& e : messages::read_log(path)) {
     RecordedMessage m;
     m.channel = std::move(e.channel);
     m.data = std::move(e.data);

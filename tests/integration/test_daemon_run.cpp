@@ -13,7 +13,6 @@
 #include <set>
 #include <thread>
 
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/builder.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
@@ -21,6 +20,7 @@
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
 #include "exodaq/palm_pose_t.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
 #include "recording.hpp"
@@ -198,9 +198,9 @@ TEST(DaemonRun, SequenceRateAndTimestampsHold) {
 
 TEST(DaemonRun, AnglesMatchTheSimulatorTruthAndPalmMatchesForwardKinematics) {
   const DaemonRecording& r = the_run();
-  const auto cfg = config::load_service_config(r.config);
+  const auto cfg = settings::load_service_config(r.config);
   const auto pipeline = core::make_pipeline_config(cfg);
-  auto source = drivers::make_source(cfg.source, config::make_source_context(cfg));
+  auto source = drivers::make_source(cfg.source, settings::make_source_context(cfg));
   auto* sim = dynamic_cast<drivers::SimSource*>(source.get());
   ASSERT_NE(sim, nullptr);
   const double one_count = 2.0 * M_PI / 10000.0;  // gear ratio 1 on every joint of sim.yaml
@@ -226,10 +226,10 @@ TEST(DaemonRun, AnglesMatchTheSimulatorTruthAndPalmMatchesForwardKinematics) {
     const auto p = test::decode<exodaq::palm_pose_t>(m->data);
     const auto it = joint_by_seq.find(p.seq);
     if (it == joint_by_seq.end()) continue;
-    kin::JointVector q(6);
+    kinematics::JointVector q(6);
     for (int j = 0; j < 6; ++j) q[j] = it->second.position[j];
-    kin::RigPose pose;
-    kin::evaluate_rig(pipeline->chain, pipeline->rig, q, pose);
+    kinematics::RigPose pose;
+    kinematics::evaluate_rig(pipeline->chain, pipeline->rig, q, pose);
     for (int k = 0; k < 3; ++k) {
       ASSERT_NEAR(p.position[k], pose.palm_position[k], 1e-9);
       ASSERT_NEAR(p.elbow[k], pose.elbow_position[k], 1e-9);

@@ -54,7 +54,7 @@ std::map<std::string, std::string> wait_for_lock(const std::string& dir,
         if (const auto eq = line.find('='); eq != std::string::npos)
           kv[line.substr(0, eq)] = line.substr(eq + 1);
       }
-      if (msg::parse_run_id(kv["run_id"])) return kv;
+      if (messages::parse_run_id(kv["run_id"])) return kv;
     }
     std::this_thread::sleep_for(50ms);
   }
@@ -70,10 +70,11 @@ std::vector<std::string> publisher_argv(const std::string& channel, double rate_
 // Until `runs` fake publishers are heard on `channel` (they may start slowly
 // on a loaded machine).
 bool heard(const std::string& channel, std::size_t runs = 1) {
-  msg::Subscriber sub(test::kLcmUrl);
+  messages::Subscriber sub(test::kLcmUrl);
   std::set<std::int64_t> got;
-  sub.subscribe(channel, msg::Kind::kStatus,
-                [&got](const msg::Received& r) { got.insert(std::get<status_t>(r.msg).run_id); });
+  sub.subscribe(channel, messages::Kind::kStatus, [&got](const messages::Received& r) {
+    got.insert(std::get<status_t>(r.msg).run_id);
+  });
   const auto end = std::chrono::steady_clock::now() + 20s;
   while (got.size() < runs && std::chrono::steady_clock::now() < end) sub.handle(100);
   return got.size() >= runs;
@@ -82,7 +83,7 @@ bool heard(const std::string& channel, std::size_t runs = 1) {
 }  // namespace
 
 TEST(RunMix, InterleavedRunsAreAMixARestartIsNot) {
-  msg::RunMixDetector d;
+  messages::RunMixDetector d;
   EXPECT_FALSE(d.observe("A_", 0));
   EXPECT_FALSE(d.observe("A_", 1));
   EXPECT_FALSE(d.observe("A_", 2));  // a restart: 1 then 2
@@ -203,8 +204,10 @@ TEST(Instance, ALockFileOwnedByAnotherUserIsNotTrusted) {
   }
   ASSERT_EQ(chown(lock.c_str(), 4242, 4242), 0);
   // --no-fork: the holder is the process signalled below, not a child of it
-  // that would keep the lock (and this test's output) for its 60 s.
-  test::Process holder({"flock", "--exclusive", "--nonblock", "--no-fork", lock, "sleep", "60"},
+  // that would keep the lock (and this test's output) for its 60 s. Blocking,
+  // not --nonblock: a probe below may hold the lock for an instant while the
+  // holder starts, and a non-blocking holder would then give up for good.
+  test::Process holder({"flock", "--exclusive", "--no-fork", lock, "sleep", "60"},
                        dir + "/holder.out", dir + "/holder.err");
   ASSERT_TRUE(test::wait_until([&] {
     const auto probe = test::run({"flock", "--exclusive", "--nonblock", lock, "true"});
@@ -273,7 +276,7 @@ TEST(Instance, ForeignRunWhileRunningFlagsSamplesAndDegrades) {
                          runtime_env(dir));
     const auto lock = wait_for_lock(dir, 20s);
     ASSERT_FALSE(lock.empty()) << test::read_file(dir + "/daemon.err");
-    own_run = *msg::parse_run_id(lock.at("run_id"));
+    own_run = *messages::parse_run_id(lock.at("run_id"));
     // Running (past its start-up listening window): its own statuses come.
     const auto own = [own_run](const status_t& st) { return st.run_id == own_run; };
     ASSERT_EQ(test::wait_for_status(test::kLcmUrl, prefix, own).run_id, own_run);
@@ -308,7 +311,7 @@ TEST(Instance, ForeignRunWhileRunningFlagsSamplesAndDegrades) {
             std::string::npos)
       << err;
 
-  const auto foreign = static_cast<std::int64_t>(*msg::parse_run_id(kForeignRun));
+  const auto foreign = static_cast<std::int64_t>(*messages::parse_run_id(kForeignRun));
   std::int64_t flagged = 0;
   std::int64_t unflagged_after = 0;
   std::int64_t degraded_naming_it = 0;
@@ -342,14 +345,14 @@ TEST(Instance, ExportOfInterleavedRunsFailsClearly) {
   const std::string dir = test::make_temp_dir("instance-export");
   const std::string log = dir + "/mixed.lcm";
   {
-    msg::LogWriter w(log);
+    messages::LogWriter w(log);
     for (int i = 0; i < 40; ++i) {
       joint_state_t js{};
       js.run_id = i % 2 == 0 ? 0x1111111111111111 : 0x2222222222222222;
       js.seq = i / 2;
       js.utime = 1'000'000 + i * 500;
       for (auto& n : js.name) n = "j";
-      const auto bytes = msg::encode(js);
+      const auto bytes = messages::encode(js);
       w.write("MIX_EXO_JOINT_STATE", js.utime, bytes.data(), bytes.size());
     }
     w.close();
@@ -465,7 +468,7 @@ TEST(Instance, AReplayOfTheLiveRunBesideItIsRefusedOrFlaggedForeign) {
   const auto lock = wait_for_lock(dir, 20s);
   ASSERT_FALSE(lock.empty()) << test::read_file(dir + "/daemon.err");
   const std::string own_text = lock.at("run_id");
-  const std::int64_t own = *msg::parse_run_id(own_text);
+  const std::int64_t own = *messages::parse_run_id(own_text);
   std::this_thread::sleep_for(2s);  // the run's first seconds
   logger.signal(SIGINT);
   ASSERT_TRUE(logger.wait(10s).has_value());

@@ -16,11 +16,11 @@
 #include <set>
 #include <thread>
 
-#include "exodaq/config/content_hash.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/joint_state_t.hpp"
+#include "exodaq/settings/content_hash.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
 #include "recording.hpp"
@@ -83,7 +83,7 @@ TEST(Reload, SighupAppliesANewCalibrationWithoutAGapAndRejectsABadOne) {
   write_atomically(cal, calibration_text(49.0, false));
   const std::string config = test::write_sim_config(dir, prefix, cal);
   // The rig as it started (its motion depends on the index angles): the truth.
-  const auto rig_config = config::load_service_config(config);
+  const auto rig_config = settings::load_service_config(config);
   test::Process recorder(
       {EXODAQ_RECORDER, test::kRecordUrl, prefix + "EXO_(JOINT_STATE|STATUS)", dir + "/rec.bin"},
       "", dir + "/rec.err");
@@ -147,7 +147,7 @@ TEST(Reload, SighupAppliesANewCalibrationWithoutAGapAndRejectsABadOne) {
 
   // The joint-1 angle relative to the simulator's truth: 0 before the
   // reload, +1 deg from the seq the first reload applied at, switching once.
-  auto source = drivers::make_source(rig_config.source, config::make_source_context(rig_config));
+  auto source = drivers::make_source(rig_config.source, settings::make_source_context(rig_config));
   const auto* sim = dynamic_cast<const drivers::SimSource*>(source.get());
   ASSERT_NE(sim, nullptr);
   const double count = 2.0 * M_PI / 10000.0;
@@ -267,7 +267,7 @@ TEST(Reload, EveryRestartOnlyChangeIsWarnedOnEverySighupAndStatusShowsTheFilesIn
   const std::string prefix = test::unique_prefix("reloadtruth");
   const std::string config = test::write_sim_config(dir, prefix);
   const std::string started_text = test::read_file(config);
-  const auto started = config::load_service_config(config);
+  const auto started = settings::load_service_config(config);
   const std::string log = dir + "/d.err";
   test::Process recorder({EXODAQ_RECORDER, test::kRecordUrl, prefix + "EXO_STATUS", dir + "/s.bin"},
                          "", dir + "/rec.err");
@@ -293,7 +293,7 @@ TEST(Reload, EveryRestartOnlyChangeIsWarnedOnEverySighupAndStatusShowsTheFilesIn
   edit("level: info", "level: debug");
   edit("model: " + started.model_path, "model: " + model);
   write_atomically(config, text);
-  const std::string changed_sha = config::sha256_hex(text);
+  const std::string changed_sha = settings::sha256_hex(text);
 
   const std::string warned = "restart-only setting(s) changed, NOT applied until exodaqd restarts";
   daemon.signal(SIGHUP);
@@ -331,7 +331,7 @@ TEST(Reload, EveryRestartOnlyChangeIsWarnedOnEverySighupAndStatusShowsTheFilesIn
   const auto& first = statuses.front();
   EXPECT_EQ(first.reloads, 0);
   EXPECT_EQ(first.config_path, config);
-  EXPECT_EQ(first.config_sha256, config::sha256_hex(started_text));
+  EXPECT_EQ(first.config_sha256, settings::sha256_hex(started_text));
   // Issue 25.10: after a reload that left restart-only settings unapplied no
   // file describes the settings in effect: the hash is empty, the message
   // says why (before: the new file's hash, its status_rate_hz not in effect).
@@ -345,15 +345,16 @@ TEST(Reload, EveryRestartOnlyChangeIsWarnedOnEverySighupAndStatusShowsTheFilesIn
     ++pending;
   }
   EXPECT_GT(pending, 0);
-  EXPECT_NE(changed_sha, config::sha256_hex(started_text));
+  EXPECT_NE(changed_sha, settings::sha256_hex(started_text));
   const auto& last = statuses.back();
   EXPECT_EQ(last.state, static_cast<std::int8_t>(exodaq::status_t::STATE_STOPPING));
   EXPECT_EQ(last.reloads, 3);
   EXPECT_EQ(last.config_path, config);
-  EXPECT_EQ(last.config_sha256, config::sha256_hex(started_text));
+  EXPECT_EQ(last.config_sha256, settings::sha256_hex(started_text));
   EXPECT_EQ(last.message.find("restart pending"), std::string::npos) << last.message;
   EXPECT_EQ(last.calibration_path, started.calibration_path);
-  EXPECT_EQ(last.calibration_sha256, config::sha256_hex(test::read_file(started.calibration_path)));
+  EXPECT_EQ(last.calibration_sha256,
+            settings::sha256_hex(test::read_file(started.calibration_path)));
   EXPECT_EQ(last.calibration_provenance, "hand-written for the simulated rig, 2026-11-22");
   // The restart-only settings kept their running values: the joint names
   // published are the start-up ones, statuses still at 10 Hz. A status closes

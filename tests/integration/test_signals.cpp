@@ -139,7 +139,7 @@ void expect_clean_stop(test::Process& daemon, StatusRecorder& recorder, const st
   EXPECT_EQ(statuses.back().state, wire::status::STATE_STOPPING) << test::read_file(log);
   EXPECT_NE(test::read_file(log).find("stopped after"), std::string::npos) << test::read_file(log);
   // Issue 15.8: the log spells the run id as every tool does (16 hex digits).
-  EXPECT_NE(test::read_file(log).find(", run id " + msg::run_id_text(statuses.back().run_id)),
+  EXPECT_NE(test::read_file(log).find(", run id " + messages::run_id_text(statuses.back().run_id)),
             std::string::npos)
       << test::read_file(log);
 }

@@ -18,11 +18,11 @@
 #include <set>
 #include <thread>
 
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/message.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "process.hpp"
 #include "recording.hpp"
 #include "sim_daemon.hpp"
@@ -56,8 +56,8 @@ RigSetup make_rig(const std::string& name, const std::string& tag, int seed) {
 
 // What the recorder heard on one rig's channels.
 struct Heard {
-  std::map<msg::Kind, std::int64_t> count;
-  std::map<msg::Kind, std::int64_t> last_seq;
+  std::map<messages::Kind, std::int64_t> count;
+  std::map<messages::Kind, std::int64_t> last_seq;
   std::set<std::int64_t> run_ids;
   std::set<std::string> status_rigs;
   std::int64_t out_of_order = 0;
@@ -71,7 +71,7 @@ TEST(TwoRigs, EachRigsMessagesOnlyOnItsOwnChannelsAndToolsSelectByPrefix) {
   ASSERT_NE(a.prefix, b.prefix);
   // Every channel of both prefixes (and anything else starting like them).
   const std::string common = test::unique_prefix("rig");  // "T<pid>_rig_"
-  const std::string pattern = msg::regex_escape(common.substr(0, common.size() - 1)) + ".*";
+  const std::string pattern = messages::regex_escape(common.substr(0, common.size() - 1)) + ".*";
   test::Process recorder({EXODAQ_RECORDER, test::kRecordUrl, pattern, a.dir + "/rec.bin"}, "",
                          a.dir + "/rec.err");
   ASSERT_TRUE(test::wait_for_udp_socket(recorder.pid(), 7667));
@@ -129,9 +129,9 @@ TEST(TwoRigs, EachRigsMessagesOnlyOnItsOwnChannelsAndToolsSelectByPrefix) {
     const drivers::SimSource* sim = nullptr;
   };
   const auto truth_of = [](const RigSetup& r) {
-    const auto cfg = config::load_service_config(r.config);
+    const auto cfg = settings::load_service_config(r.config);
     Truth t;
-    t.source = drivers::make_source(cfg.source, config::make_source_context(cfg));
+    t.source = drivers::make_source(cfg.source, settings::make_source_context(cfg));
     t.sim = dynamic_cast<const drivers::SimSource*>(t.source.get());
     return t;
   };
@@ -146,17 +146,17 @@ TEST(TwoRigs, EachRigsMessagesOnlyOnItsOwnChannelsAndToolsSelectByPrefix) {
   std::int64_t homed_checked = 0;
   std::int64_t truths_differ = 0;
   for (const auto& m : test::read_recorder_file(a.dir + "/rec.bin")) {
-    const auto parts = msg::split_channel(m.channel);
+    const auto parts = messages::split_channel(m.channel);
     if (!parts || (parts->prefix != a.prefix && parts->prefix != b.prefix)) {
       ++foreign;
       ADD_FAILURE() << "message on an unexpected channel " << m.channel;
       continue;
     }
-    const auto decoded = msg::decode(parts->kind, m.data.data(), m.data.size());
+    const auto decoded = messages::decode(parts->kind, m.data.data(), m.data.size());
     ASSERT_TRUE(decoded.has_value()) << m.channel;
-    ASSERT_EQ(msg::kind_of(*decoded), parts->kind) << m.channel;
+    ASSERT_EQ(messages::kind_of(*decoded), parts->kind) << m.channel;
     Heard& h = heard[parts->prefix];
-    const msg::Stamp st = msg::stamp_of(*decoded);
+    const messages::Stamp st = messages::stamp_of(*decoded);
     h.run_ids.insert(st.run_id);
     auto [it, first] = h.last_seq.try_emplace(parts->kind, st.seq);
     if (!first) {
@@ -194,13 +194,14 @@ TEST(TwoRigs, EachRigsMessagesOnlyOnItsOwnChannelsAndToolsSelectByPrefix) {
     EXPECT_EQ(h.out_of_order, 0) << "seq went back on a channel: another rig's message";
     EXPECT_EQ(h.status_rigs,
               (std::set<std::string>{prefix == a.prefix ? std::string("rig-a") : "rig-b"}));
-    for (const auto k : msg::kAllKinds) EXPECT_GT(h.count.count(k), 0U);  // every kind published
+    for (const auto k : messages::kAllKinds)
+      EXPECT_GT(h.count.count(k), 0U);  // every kind published
   }
   std::printf(
       "two rigs: %lld + %lld joint states, %lld homed angles checked against their own "
       "truth, %lld of them differing from the other rig's truth\n",
-      static_cast<long long>(heard[a.prefix].count[msg::Kind::kJointState]),
-      static_cast<long long>(heard[b.prefix].count[msg::Kind::kJointState]),
+      static_cast<long long>(heard[a.prefix].count[messages::Kind::kJointState]),
+      static_cast<long long>(heard[b.prefix].count[messages::Kind::kJointState]),
       static_cast<long long>(homed_checked), static_cast<long long>(truths_differ));
   EXPECT_NE(*heard[a.prefix].run_ids.begin(), *heard[b.prefix].run_ids.begin());
   EXPECT_GT(homed_checked, 0);

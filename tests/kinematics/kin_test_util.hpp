@@ -3,10 +3,10 @@
 #include <random>
 #include <string>
 
-#include "exodaq/config/model_file.hpp"
 #include "exodaq/kinematics/chain.hpp"
+#include "exodaq/settings/model_file.hpp"
 
-namespace exodaq::kin::test {
+namespace exodaq::kinematics::test {
 
 inline constexpr double kPi = 3.14159265358979323846;
 inline constexpr double kDeg = kPi / 180.0;
@@ -18,8 +18,9 @@ inline std::string model_path(const std::string& file) {
   return std::string(EXODAQ_SOURCE_DIR) + "/config/models/" + file;
 }
 
-inline const config::KinematicModel& macaque() {
-  static const config::KinematicModel m = config::load_model_file(model_path("macaque_exo.yaml"));
+inline const settings::KinematicModel& macaque() {
+  static const settings::KinematicModel m =
+      settings::load_model_file(model_path("macaque_exo.yaml"));
   return m;
 }
 
@@ -106,4 +107,4 @@ inline JointVector random_any(int n, std::mt19937_64& rng) {
   return q;
 }
 
-}  // namespace exodaq::kin::test
+}  // namespace exodaq::kinematics::test

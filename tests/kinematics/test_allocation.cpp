@@ -8,7 +8,7 @@
 #include "exodaq/kinematics/rig_kinematics.hpp"
 #include "kin_test_util.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 namespace {
 
 TEST(Allocation, CounterSeesAnAllocation) {
@@ -52,9 +52,9 @@ TEST(Allocation, HotPathAllocatesNothing) {
   run_hot_path(m.chain, m.rig, 200);
   const Chain poe = m.chain.to_product_of_exponentials();
   run_hot_path(poe, m.rig, 200);
-  const auto planar = config::load_model_file(test::model_path("seed004_planar.yaml"));
+  const auto planar = settings::load_model_file(test::model_path("seed004_planar.yaml"));
   run_hot_path(planar.chain, planar.rig, 200);
 }
 
 }  // namespace
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

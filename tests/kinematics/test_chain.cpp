@@ -7,7 +7,7 @@
 #include "exodaq/kinematics/rig_kinematics.hpp"
 #include "kin_test_util.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 namespace {
 
 using test::kDeg;
@@ -278,4 +278,4 @@ TEST(Chain, RejectsTooManyJointsAndZeroScrew) {
 }
 
 }  // namespace
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

@@ -2,10 +2,10 @@
 // exponentials gives the same palm pose and palm Jacobian.
 #include <gtest/gtest.h>
 
-#include "exodaq/config/model_file.hpp"
+#include "exodaq/settings/model_file.hpp"
 #include "kin_test_util.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 namespace {
 
 using test::kPi;
@@ -23,8 +23,8 @@ void expect_same_palm(const Chain& a, const Chain& b, const JointVector& q, doub
 
 TEST(Conventions, MacaqueInThreeModelFilesAgree) {
   const auto& sdh = test::macaque();
-  const auto mdh = config::load_model_text(test::kMacaqueModifiedDh, "mdh.yaml");
-  const auto poe = config::load_model_text(test::kMacaquePoe, "poe.yaml");
+  const auto mdh = settings::load_model_text(test::kMacaqueModifiedDh, "mdh.yaml");
+  const auto poe = settings::load_model_text(test::kMacaquePoe, "poe.yaml");
   EXPECT_EQ(mdh.chain.convention(), Convention::kModifiedDh);
   EXPECT_EQ(poe.chain.convention(), Convention::kProductOfExponentials);
   const Chain converted = sdh.chain.to_product_of_exponentials();
@@ -107,7 +107,7 @@ TEST(Conventions, GeneralTablesWithOffsetsBaseAndTool) {
 
 TEST(Conventions, PoeJointOffsetShiftsTheZero) {
   // offset: exp(xi (q + offset)); a planar 1R arm of length 1 about z.
-  const auto m = config::load_model_text(R"(
+  const auto m = settings::load_model_text(R"(
 name: one
 convention: poe
 angle_unit: deg
@@ -115,7 +115,7 @@ joints:
   - {name: j, screw: {omega: [0, 0, 2], q: [0, 0, 0]}, offset: 90, limits: [-180, 180]}
 home_pose: {translation: [1, 0, 0]}
 )",
-                                         "one.yaml");
+                                           "one.yaml");
   JointVector q(1);
   q << 0.0;
   EXPECT_LT((m.chain.palm(q).translation() - Eigen::Vector3d(0, 1, 0)).norm(), 1e-15);
@@ -124,4 +124,4 @@ home_pose: {translation: [1, 0, 0]}
 }
 
 }  // namespace
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

@@ -10,11 +10,11 @@
 #include <vector>
 
 #include "alloc_counter.hpp"
-#include "exodaq/config/model_file.hpp"
 #include "exodaq/kinematics/ik.hpp"
+#include "exodaq/settings/model_file.hpp"
 #include "kin_test_util.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 namespace {
 
 using test::kDeg;
@@ -69,8 +69,8 @@ Chain widened(const Chain& c) {
 
 TEST(IkSetup, StructureOfTheModels) {
   const auto& m = test::macaque();
-  const auto mdh = config::load_model_text(test::kMacaqueModifiedDh, "mdh.yaml");
-  const auto poe = config::load_model_text(test::kMacaquePoe, "poe.yaml");
+  const auto mdh = settings::load_model_text(test::kMacaqueModifiedDh, "mdh.yaml");
+  const auto poe = settings::load_model_text(test::kMacaquePoe, "poe.yaml");
   for (const Chain* c : {&m.chain, &mdh.chain, &poe.chain}) {
     const IkSolver ik(*c, m.rig);
     EXPECT_EQ(ik.redundancy(), 1);  // four shoulder axes through one point
@@ -84,13 +84,13 @@ TEST(IkSetup, StructureOfTheModels) {
   EXPECT_EQ(ikn.free_joint(), 0);
   EXPECT_FALSE(ikn.analytical());
 
-  const auto planar = config::load_model_file(test::model_path("seed004_planar.yaml"));
+  const auto planar = settings::load_model_file(test::model_path("seed004_planar.yaml"));
   const IkSolver ikp(planar.chain, planar.rig);
   EXPECT_EQ(ikp.redundancy(), 0);
   EXPECT_EQ(ikp.free_joint(), -1);
   EXPECT_FALSE(ikp.analytical());
 
-  const auto puma = config::load_model_text(test::kPuma560, "puma.yaml");
+  const auto puma = settings::load_model_text(test::kPuma560, "puma.yaml");
   const IkSolver ikr(puma.chain, puma.rig);
   EXPECT_EQ(ikr.redundancy(), 0);
   EXPECT_FALSE(ikr.analytical());  // no spherical shoulder
@@ -131,8 +131,8 @@ TEST(IkMacaque, RoundTrip10000PosturesStandardDh) {
 }
 
 TEST(IkMacaque, RoundTripModifiedDhAndPoe) {
-  const auto mdh = config::load_model_text(test::kMacaqueModifiedDh, "mdh.yaml");
-  const auto poe = config::load_model_text(test::kMacaquePoe, "poe.yaml");
+  const auto mdh = settings::load_model_text(test::kMacaqueModifiedDh, "mdh.yaml");
+  const auto poe = settings::load_model_text(test::kMacaquePoe, "poe.yaml");
   macaque_round_trips(mdh.chain, mdh.rig, 2000, 2);
   macaque_round_trips(poe.chain, poe.rig, 2000, 3);
   const Chain converted = test::macaque().chain.to_product_of_exponentials();
@@ -386,7 +386,7 @@ TEST(IkMacaque, NearestFollowsASmoothPath) {
 // Seed 004's planar 3R arm (numerical solver): two solutions (elbow up and down)
 // except with the arm straight or folded, where they meet.
 TEST(IkSeed004, RoundTrip10000Postures) {
-  const auto planar = config::load_model_file(test::model_path("seed004_planar.yaml"));
+  const auto planar = settings::load_model_file(test::model_path("seed004_planar.yaml"));
   const Chain& c = planar.chain;
   IkSolver ik(c, planar.rig);
   std::mt19937_64 rng(9);
@@ -411,7 +411,7 @@ TEST(IkSeed004, RoundTrip10000Postures) {
 }
 
 TEST(IkSeed004, KnownPostureCounts) {
-  const auto planar = config::load_model_file(test::model_path("seed004_planar.yaml"));
+  const auto planar = settings::load_model_file(test::model_path("seed004_planar.yaml"));
   const Chain& c = planar.chain;
   IkSolver ik(c, planar.rig);
   struct Case {
@@ -443,8 +443,8 @@ TEST(IkSeed004, KnownPostureCounts) {
 // PUMA 560: eight solutions at a generic posture (Craig sec. 4.7: shoulder left /
 // right, elbow up / down, wrist flipped or not), in all three conventions.
 TEST(IkPuma560, EightSolutionsInEachConvention) {
-  const auto sdh = config::load_model_text(test::kPuma560, "puma.yaml");
-  const auto mdh = config::load_model_text(test::kPuma560ModifiedDh, "puma_mdh.yaml");
+  const auto sdh = settings::load_model_text(test::kPuma560, "puma.yaml");
+  const auto mdh = settings::load_model_text(test::kPuma560ModifiedDh, "puma_mdh.yaml");
   const Chain poe = sdh.chain.to_product_of_exponentials();
   const std::vector<JointVector> postures = {
       deg({10, -40, 30, 50, -60, 70}),
@@ -471,7 +471,7 @@ TEST(IkPuma560, EightSolutionsInEachConvention) {
 TEST(IkPuma560, MultiStartFindsAllEightAtMostRandomPostures) {
   // The numerical solver's miss rate (docs/kinematics.md): every solution it
   // returns reaches the pose; all eight at >= 99 % of random postures.
-  const auto m = config::load_model_text(test::kPuma560, "puma.yaml");
+  const auto m = settings::load_model_text(test::kPuma560, "puma.yaml");
   IkSolver ik(m.chain, m.rig);
   std::mt19937_64 rng(11);
   int all_eight = 0;
@@ -491,7 +491,7 @@ TEST(IkPuma560, MultiStartFindsAllEightAtMostRandomPostures) {
 
 TEST(IkPuma560, JointLimitsLeaveTheSolutionsWithin) {
   // Joint 2 limited to [-90, 90] deg: the shoulder-flipped solutions drop out.
-  auto m = config::load_model_text(test::kPuma560, "puma.yaml");
+  auto m = settings::load_model_text(test::kPuma560, "puma.yaml");
   std::vector<JointDescription> joints = m.chain.joints();
   joints[1].limits = {-kPi / 2, kPi / 2};
   const Chain limited(m.chain.convention(), joints, m.chain.base(), m.chain.tool());
@@ -511,7 +511,7 @@ TEST(IkPuma560, JointLimitsLeaveTheSolutionsWithin) {
 
 TEST(IkAllocation, SolvingAllocatesNothingAfterSetUp) {
   const auto& m = test::macaque();
-  const auto planar = config::load_model_file(test::model_path("seed004_planar.yaml"));
+  const auto planar = settings::load_model_file(test::model_path("seed004_planar.yaml"));
   IkSolver closed(m.chain, m.rig);
   IkOptions o;
   o.use_analytical = false;
@@ -548,4 +548,4 @@ TEST(IkAllocation, SolvingAllocatesNothingAfterSetUp) {
 }
 
 }  // namespace
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

@@ -10,7 +10,7 @@
 
 #include "kin_test_util.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 namespace {
 
 // One KDL segment per standard DH row: RotZ joint, then Frame::DH(a, alpha, d, offset).
@@ -60,4 +60,4 @@ TEST(Kdl, AgreesWithExodaqOnSeed000Chain) {
 }
 
 }  // namespace
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

@@ -5,10 +5,10 @@
 #include <random>
 #include <regex>
 
-#include "exodaq/config/model_file.hpp"
+#include "exodaq/settings/model_file.hpp"
 #include "kin_test_util.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 namespace {
 
 // Line numbers below refer to this text.
@@ -51,7 +51,7 @@ TEST(ModelFile, GoodTextLoads) {
   EXPECT_EQ(m.chain.joints()[1].name, "j2");
   EXPECT_DOUBLE_EQ(m.chain.joints()[1].dh.a, 0.1);
   EXPECT_DOUBLE_EQ(m.chain.joints()[1].dh.d, 0.2);
-  EXPECT_NEAR(m.home_posture[1], 20 * kin::test::kDeg, 1e-15);
+  EXPECT_NEAR(m.home_posture[1], 20 * kinematics::test::kDeg, 1e-15);
   EXPECT_EQ(m.rig.elbow_frame, 2);  // defaults: min(4, n)
   EXPECT_EQ(m.rig.shoulder_joints, 2);
   // Millimetres and radians.
@@ -66,9 +66,9 @@ TEST(ModelFile, GoodTextLoads) {
 }
 
 TEST(ModelFile, InstalledModelsLoad) {
-  const auto seed000 = load_model_file(kin::test::model_path("macaque_exo.yaml"));
+  const auto seed000 = load_model_file(kinematics::test::model_path("macaque_exo.yaml"));
   EXPECT_NEAR(seed000.rig.shoulder_manipulability_max, std::sqrt(2.0), 1e-15);
-  const auto seed004 = load_model_file(kin::test::model_path("seed004_planar.yaml"));
+  const auto seed004 = load_model_file(kinematics::test::model_path("seed004_planar.yaml"));
   EXPECT_EQ(seed004.rig.elbow_frame, 1);
 }
 
@@ -177,7 +177,7 @@ TEST(ModelFile, PoeErrors) {
 
 TEST(ModelFile, TooManyJoints) {
   std::string text = "name: t\nconvention: standard_dh\nangle_unit: deg\njoints:\n";
-  for (int i = 0; i < kin::kMaxJoints + 1; ++i) {
+  for (int i = 0; i < kinematics::kMaxJoints + 1; ++i) {
     text += "  - {name: j" + std::to_string(i) + ", dh: {a: 0, alpha: 0, d: 0}, limits: [-1, 1]}\n";
   }
   EXPECT_EQ(error_of(text), "bad.yaml:5: 'joints' has 9 joints, at most 8 are supported");
@@ -207,7 +207,7 @@ TEST(ModelFile, ErrorsCarryFileAndLine) {
 // The loader never crashes: every mutation of a real model file either loads or
 // throws ConfigError naming the file.
 TEST(ModelFile, MutatedFilesNeverEscapeConfigError) {
-  std::ifstream in(kin::test::model_path("macaque_exo.yaml"));
+  std::ifstream in(kinematics::test::model_path("macaque_exo.yaml"));
   const std::string base((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   ASSERT_GT(base.size(), 100u);
   std::mt19937_64 rng(10);
@@ -243,4 +243,4 @@ TEST(ModelFile, MutatedFilesNeverEscapeConfigError) {
 }
 
 }  // namespace
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

@@ -21,10 +21,10 @@
 
 #include <cmath>
 
-#include "exodaq/config/model_file.hpp"
+#include "exodaq/settings/model_file.hpp"
 #include "kin_test_util.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 namespace {
 
 struct Example {
@@ -58,7 +58,7 @@ const Example kExamples[] = {
 };
 
 TEST(Seed004, PlanarExamplesFromPoeModelFile) {
-  const auto m = config::load_model_file(test::model_path("seed004_planar.yaml"));
+  const auto m = settings::load_model_file(test::model_path("seed004_planar.yaml"));
   ASSERT_EQ(m.chain.joint_count(), 3);
   ASSERT_EQ(m.chain.convention(), Convention::kProductOfExponentials);
   // g_st(0) of eq. (11) at q = 0: palm at (0, l1 + l2 + l3, 0) mm = 1.059 m.
@@ -100,7 +100,7 @@ TEST(Seed004, PlanarExamplesFromPoeModelFile) {
 TEST(Seed004, PrintedHomePoseSignWouldNotReproduceTheExamples) {
   // The paper's eq. (4) puts the palm at y = -(l1 + l2 + l3) at q = 0; with that
   // M example 3 lands elsewhere, which is why the model file follows eq. (11).
-  const auto m = config::load_model_text(R"(
+  const auto m = settings::load_model_text(R"(
 name: seed004_eq4
 convention: poe
 angle_unit: deg
@@ -111,7 +111,7 @@ joints:
   - {name: c, screw: {omega: [0, 0, 1], q: [0, 847, 1]}, limits: [-180, 180]}
 home_pose: {translation: [0, -1059, 0]}
 )",
-                                         "eq4.yaml");
+                                           "eq4.yaml");
   JointVector q(3);
   q << M_PI / 4, M_PI / 4, -M_PI / 4;
   const Eigen::Vector3d p = m.chain.palm(q).translation() * 1000.0;
@@ -119,4 +119,4 @@ home_pose: {translation: [0, -1059, 0]}
 }
 
 }  // namespace
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

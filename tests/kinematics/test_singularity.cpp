@@ -15,13 +15,13 @@
 #include "exodaq/kinematics/rig_kinematics.hpp"
 #include "kin_test_util.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 namespace {
 
 using test::kDeg;
 using test::kPi;
 
-double shoulder_w(const config::KinematicModel& m, const JointVector& q) {
+double shoulder_w(const settings::KinematicModel& m, const JointVector& q) {
   RigPose out;
   evaluate_rig(m.chain, m.rig, q, out);
   return out.shoulder_manipulability;
@@ -139,4 +139,4 @@ TEST(ShoulderSingularity, AxesLineUpAtBothPoints) {
 }
 
 }  // namespace
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

@@ -13,7 +13,7 @@
 #include "exodaq/kinematics/trajectory.hpp"
 #include "kin_test_util.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 namespace {
 
 using test::kDeg;
@@ -280,4 +280,4 @@ TEST(Trajectory, PalmTargetsThroughIkBecomeJointMotion) {
 }
 
 }  // namespace
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

@@ -21,7 +21,7 @@ std::vector<std::int32_t> flag_values() {
 }  // namespace
 
 int main() {
-  using namespace exodaq::msg;
+  using namespace exodaq::messages;
   for (Kind k : kAllKinds) {
     std::printf("kind %s %s %s\n", std::string(type_name(k)).c_str(),
                 std::string(base_channel(k)).c_str(), is_per_cycle(k) ? "per_cycle" : "-");

@@ -44,17 +44,17 @@ struct Index {
 
 Index index_log(const std::string& path) {
   Index ix;
-  msg::LogReader log(path);
-  msg::LogEvent ev;
+  messages::LogReader log(path);
+  messages::LogEvent ev;
   while (log.next(ev)) {
     ix.offsets.push_back(ev.offset);
     std::uint8_t k = 0;
     std::int64_t s = -1;
-    if (const auto parts = msg::split_channel(ev.channel)) {
-      if (parts->kind == msg::Kind::kJointState) k = 1;
-      if (parts->kind == msg::Kind::kPalmPose) k = 2;
-      if (parts->kind == msg::Kind::kEncoderRaw) k = 3;
-      if (const auto st = msg::peek_stamp(ev.data, ev.size); k != 0 && st) s = st->stamp.seq;
+    if (const auto parts = messages::split_channel(ev.channel)) {
+      if (parts->kind == messages::Kind::kJointState) k = 1;
+      if (parts->kind == messages::Kind::kPalmPose) k = 2;
+      if (parts->kind == messages::Kind::kEncoderRaw) k = 3;
+      if (const auto st = messages::peek_stamp(ev.data, ev.size); k != 0 && st) s = st->stamp.seq;
     }
     ix.kind.push_back(k);
     ix.seq.push_back(s);
@@ -139,11 +139,11 @@ int main(int argc, char** argv) {
     if (ix.kind[e] == 3) ++touched_raw;
   }
   // The damage the reader finds.
-  std::vector<msg::LogDamage> ranges;
+  std::vector<messages::LogDamage> ranges;
   std::int64_t events_lost = 0;
   {
-    msg::LogReader log(damaged);
-    msg::LogEvent ev;
+    messages::LogReader log(damaged);
+    messages::LogEvent ev;
     while (log.next(ev)) {
     }
     ranges = log.damage();

@@ -21,12 +21,12 @@ int main(int argc, char** argv) {
   }
   const std::string prefix = argc == 4 ? argv[3] : "";
   const long long cycles = std::atoll(argv[2]);
-  const std::string raw_ch = msg::channel_name(prefix, msg::Kind::kEncoderRaw);
-  const std::string joint_ch = msg::channel_name(prefix, msg::Kind::kJointState);
-  const std::string palm_ch = msg::channel_name(prefix, msg::Kind::kPalmPose);
-  const std::string status_ch = msg::channel_name(prefix, msg::Kind::kStatus);
+  const std::string raw_ch = messages::channel_name(prefix, messages::Kind::kEncoderRaw);
+  const std::string joint_ch = messages::channel_name(prefix, messages::Kind::kJointState);
+  const std::string palm_ch = messages::channel_name(prefix, messages::Kind::kPalmPose);
+  const std::string status_ch = messages::channel_name(prefix, messages::Kind::kStatus);
   try {
-    msg::LogWriter log(argv[1]);
+    messages::LogWriter log(argv[1]);
     joint_state_t j{};
     const char* names[6] = {"shoulder_azimuth",  "shoulder_abduction", "shoulder_flexion",
                             "shoulder_rotation", "elbow_flexion",      "forearm_pronation"};
@@ -39,7 +39,7 @@ int main(int argc, char** argv) {
     for (long long seq = 0; seq < cycles; ++seq) {
       const encoder_raw_t r = test::raw_message(seq);
       const auto put = [&](const std::string& ch, const auto& m) {
-        const auto bytes = msg::encode(m);
+        const auto bytes = messages::encode(m);
         log.write(ch, r.utime + 150, bytes.data(), bytes.size());
       };
       put(raw_ch, r);

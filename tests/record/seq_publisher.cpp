@@ -35,7 +35,7 @@ void stamp(T& m, std::int64_t seq) {
 
 template <typename T>
 void send(core::UdpmSender& tx, const std::string& channel, const T& m) {
-  const auto bytes = msg::encode(m);
+  const auto bytes = messages::encode(m);
   if (tx.send(channel, bytes.data(), bytes.size()) != 0) std::fprintf(stderr, "send failed\n");
 }
 
@@ -61,9 +61,9 @@ int main(int argc, char** argv) {
     stamp(p, seq);
     encoder_raw_t r{};
     stamp(r, seq);
-    send(tx, msg::channel_name(prefix, msg::Kind::kJointState), j);
-    send(tx, msg::channel_name(prefix, msg::Kind::kPalmPose), p);
-    send(tx, msg::channel_name(prefix, msg::Kind::kEncoderRaw), r);
+    send(tx, messages::channel_name(prefix, messages::Kind::kJointState), j);
+    send(tx, messages::channel_name(prefix, messages::Kind::kPalmPose), p);
+    send(tx, messages::channel_name(prefix, messages::Kind::kEncoderRaw), r);
   };
   std::int64_t unpublished = 0;
   const auto status = [&](std::int64_t seq, std::int8_t state) {
@@ -74,7 +74,7 @@ int main(int argc, char** argv) {
     s.cycles = seq + 1 - unpublished;
     s.overruns = unpublished;
     for (auto& n : s.joint_name) n = "j";
-    send(tx, msg::channel_name(prefix, msg::Kind::kStatus), s);
+    send(tx, messages::channel_name(prefix, messages::Kind::kStatus), s);
   };
   for (std::int64_t seq = 0; seq < kCycles; ++seq) {
     if (skipped.count(seq) != 0) {

@@ -1,7 +1,7 @@
 // The LCM log reader on damaged logs (issue 25 item 2): one damaged header
 // costs its own event only; the reader re-synchronises on the next plausible
 // event, names the damaged bytes and counts the events lost there from the
-// event numbers on either side. Logs are written with msg::LogWriter (the
+// event numbers on either side. Logs are written with messages::LogWriter (the
 // lcm-logger format) and damaged byte by byte.
 #include <gtest/gtest.h>
 
@@ -47,9 +47,9 @@ Log make_log(const std::string& dir, const std::string& name, int n, std::int64_
   Log log;
   log.path = dir + "/" + name;
   {
-    msg::LogWriter w(log.path);
+    messages::LogWriter w(log.path);
     for (int i = 0; i < n; ++i) {
-      log.data.push_back(msg::encode(raw_message(i)));
+      log.data.push_back(messages::encode(raw_message(i)));
       w.write("EXO_ENCODER_RAW", t0 + i * 1000, log.data.back().data(), log.data.back().size());
     }
     w.close();
@@ -69,16 +69,16 @@ void put_be32(Bytes& b, std::int64_t at, std::uint32_t v) {
 }
 
 struct Read {
-  std::vector<msg::LogEvent> events;  // views not kept: data copied below
+  std::vector<messages::LogEvent> events;  // views not kept: data copied below
   std::vector<Bytes> data;
-  std::vector<msg::LogDamage> damage;
+  std::vector<messages::LogDamage> damage;
   std::string text;
 };
 
 Read read_all(const std::string& path) {
   Read r;
-  msg::LogReader reader(path);
-  msg::LogEvent ev;
+  messages::LogReader reader(path);
+  messages::LogEvent ev;
   while (reader.next(ev)) {
     r.events.push_back(ev);
     r.data.emplace_back(ev.data, ev.data + ev.size);
@@ -290,7 +290,7 @@ TEST_F(LogReaderDamage, TwentyRandomCorruptionsCostOnlyTheEventsTheyHit) {
       bool holds = false;
       for (const std::int64_t k : hit) holds = holds || (k >= d.from && k < d.to);
       EXPECT_TRUE(holds) << "seed " << seed << ": a damaged stretch without a corrupted byte: "
-                         << msg::LogReader::damage_line(p, d);
+                         << messages::LogReader::damage_line(p, d);
     }
     for (const std::int64_t k : checked_field) {
       EXPECT_TRUE(in_damage(k)) << "seed " << seed << ": byte " << k << " not reported";

@@ -85,8 +85,8 @@ struct Event {
 
 std::vector<Event> read_events(const std::string& path) {
   std::vector<Event> out;
-  msg::LogReader log(path);
-  msg::LogEvent ev;
+  messages::LogReader log(path);
+  messages::LogEvent ev;
   while (log.next(ev)) {
     out.push_back({std::string(ev.channel), {ev.data, ev.data + ev.size}, ev.timestamp});
   }
@@ -497,11 +497,11 @@ struct Located {
 // The joint_state_t events of the recording, in order.
 std::vector<Located> joint_events(const std::string& path, const std::string& prefix) {
   std::vector<Located> out;
-  msg::LogReader log(path);
-  msg::LogEvent ev;
+  messages::LogReader log(path);
+  messages::LogEvent ev;
   while (log.next(ev)) {
     if (ev.channel != prefix + "EXO_JOINT_STATE") continue;
-    const auto st = msg::peek_stamp(ev.data, ev.size);
+    const auto st = messages::peek_stamp(ev.data, ev.size);
     if (!st || st->stamp.utime == 0) continue;
     out.push_back({ev.offset, ev.offset + 28 + static_cast<std::int64_t>(ev.channel.size()),
                    ev.size, st->stamp.seq});

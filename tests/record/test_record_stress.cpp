@@ -96,17 +96,17 @@ TEST(RecordStress, AFreeRunningBoardsCatchUpAfterAOneSecondStallIsRecordedWhole)
   std::int64_t late_run = 0;
   std::int64_t longest_late = 0;
   {
-    msg::LogReader reader(log);
-    msg::LogEvent ev;
+    messages::LogReader reader(log);
+    messages::LogEvent ev;
     while (reader.next(ev)) {
       if (ev.channel == prefix + "EXO_STATUS") {
         status_t st;
-        if (msg::decode_into(st, ev.data, ev.size) && st.state == status_t::STATE_STOPPING) {
+        if (messages::decode_into(st, ev.data, ev.size) && st.state == status_t::STATE_STOPPING) {
           daemon_cycles = st.cycles;
         }
       } else if (ev.channel == prefix + "EXO_JOINT_STATE") {
         joint_state_t js;
-        ASSERT_TRUE(msg::decode_into(js, ev.data, ev.size));
+        ASSERT_TRUE(messages::decode_into(js, ev.data, ev.size));
         if (js.utime == 0) continue;
         seqs.push_back(js.seq);
         late_run = (js.sample_flags & joint_state_t::SAMPLE_LATE) != 0 ? late_run + 1 : 0;
@@ -139,8 +139,8 @@ TEST(RecordStress, AFreeRunningBoardsCatchUpAfterAOneSecondStallIsRecordedWhole)
   // lcm-logger as the docs advised it: what it has, the recorder has too.
   std::multiset<std::vector<std::uint8_t>> ours;
   {
-    msg::LogReader reader(log);
-    msg::LogEvent ev;
+    messages::LogReader reader(log);
+    messages::LogEvent ev;
     while (reader.next(ev)) ours.insert(std::vector<std::uint8_t>(ev.data, ev.data + ev.size));
   }
   std::int64_t logger_joints = 0;

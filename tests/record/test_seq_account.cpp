@@ -1,4 +1,4 @@
-// msg::RunAccount: seq holes split into the daemon's own (its status
+// messages::RunAccount: seq holes split into the daemon's own (its status
 // counters, window by window) and those lost on the way; repeats and late
 // arrivals (issue 25 items 1, 5 and 10).
 #include <gtest/gtest.h>
@@ -6,7 +6,7 @@
 #include "exodaq/messages/seq_account.hpp"
 #include "rate_meter.hpp"
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 namespace {
 
 constexpr Kind kJoint = Kind::kJointState;
@@ -133,7 +133,7 @@ TEST(SeqAccount, AStatusOlderThanTheLastIsIgnored) {
 }
 
 }  // namespace
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages
 
 namespace exodaq::tools {
 namespace {
@@ -145,7 +145,7 @@ TEST(RateMeter, TheDaemonsSkippedSeqAreNotCountedAsMissing) {
   std::int64_t t = 0;
   for (std::int64_t s = 0; s < 500; ++s) {
     if (s >= 100 && s < 110) continue;  // the daemon skipped 10
-    m.add(msg::Stamp{0, s * 1'000'000, s, 7}, t += 1'000'000);
+    m.add(messages::Stamp{0, s * 1'000'000, s, 7}, t += 1'000'000);
     if (s % 100 == 99) m.add_status(7, s, s < 100 ? 0 : 10);
   }
   EXPECT_EQ(m.skipped_in_window(), 10);
@@ -153,7 +153,7 @@ TEST(RateMeter, TheDaemonsSkippedSeqAreNotCountedAsMissing) {
   RateMeter without;  // no statuses: the holes count as missing
   t = 0;
   for (std::int64_t s = 0; s < 500; ++s) {
-    if (s < 100 || s >= 110) without.add(msg::Stamp{0, s * 1'000'000, s, 7}, t += 1'000'000);
+    if (s < 100 || s >= 110) without.add(messages::Stamp{0, s * 1'000'000, s, 7}, t += 1'000'000);
   }
   EXPECT_DOUBLE_EQ(*without.received_fraction(), 490.0 / 500.0);
 }

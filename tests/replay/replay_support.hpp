@@ -12,9 +12,9 @@
 
 namespace exodaq::test {
 
-using LogEvent = msg::OwnedEvent;
-using msg::read_log;
-using msg::write_log;
+using LogEvent = messages::OwnedEvent;
+using messages::read_log;
+using messages::write_log;
 
 // Decodes every event of `channel` as Msg, keyed by seq (the daemon's
 // all-zero start-up messages, utime == 0, are left out).
@@ -35,7 +35,7 @@ std::map<std::int64_t, Msg> messages_by_seq(const std::vector<LogEvent>& log,
 // One log event carrying `m` on `channel`, stamped with its utime.
 template <typename Msg>
 LogEvent event(const std::string& channel, const Msg& m) {
-  return LogEvent{channel, msg::encode(m), m.utime};
+  return LogEvent{channel, messages::encode(m), m.utime};
 }
 
 // The simulated rig's frames for cycles [0, cycles) as `candump -l` lines

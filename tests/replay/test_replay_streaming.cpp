@@ -347,7 +347,7 @@ TEST(ReplayStreaming, CandumpSessionSameAsWholeFileLoad) {
 // only, 138 bytes an event.
 std::string write_long_lcm(const std::string& dir, std::int64_t cycles) {
   std::string path = dir + "/long.lcm";
-  msg::LogWriter log(path);
+  messages::LogWriter log(path);
   encoder_raw_t r{};
   r.run_id = 0x5eed;
   r.present = true;

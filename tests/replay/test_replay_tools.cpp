@@ -21,7 +21,6 @@
 
 #include "exodaq/calibration/marker_layout.hpp"
 #include "exodaq/calibration/solver.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/homing_t.hpp"
@@ -29,6 +28,7 @@
 #include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/message.hpp"
 #include "exodaq/palm_pose_t.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
 #include "replay_support.hpp"
@@ -628,7 +628,7 @@ TEST_F(ReplayLive, ExportHasOneRowPerCycleWithTheLogsValues) {
     ASSERT_EQ(row.size(), rows[0].size());
     ASSERT_EQ(std::stoll(row[col["seq"]]), seq);
     EXPECT_EQ(std::stoll(row[col["utime_us"]]), j.utime);
-    ASSERT_EQ(row[col["run_id"]], msg::run_id_text(j.run_id));
+    ASSERT_EQ(row[col["run_id"]], messages::run_id_text(j.run_id));
     for (int k = 0; k < 6; ++k) {
       const std::string n = j0.name[k];
       // Exact: the shortest text that reads back to the same double; no "-0".
@@ -679,8 +679,8 @@ TEST_F(ReplayLive, ExportOfADamagedLogNamesTheBytesAndKeepsEveryGoodEvent) {
   std::string mid = good;
   std::int64_t at = 0;  // the header of the first joint state past the middle
   {
-    msg::LogReader reader(g_live->replay);
-    msg::LogEvent ev;
+    messages::LogReader reader(g_live->replay);
+    messages::LogEvent ev;
     while (reader.next(ev) && (ev.offset < static_cast<std::int64_t>(mid.size() / 2) ||
                                ev.channel != g_live->prefix + "EXO_JOINT_STATE")) {
     }
@@ -750,7 +750,7 @@ std::string bounds_holding_all_but_offsets(const std::string& dir, const cal::Pa
     const std::size_t end = text.find('}', at);
     const std::size_t comma = text.find(',', at);
     text = text.substr(0, at) + "\n  " + key +
-           ": {initial: " + msg::csv::number(cal::to_display(p, truth[p])) +
+           ": {initial: " + messages::csv::number(cal::to_display(p, truth[p])) +
            text.substr(comma, end - comma) + ", fixed: true" + text.substr(end);
   }
   const std::string path = dir + "/bounds.yaml";
@@ -761,7 +761,7 @@ std::string bounds_holding_all_but_offsets(const std::string& dir, const cal::Pa
 Markers synthesise_markers(const std::string& dir) {
   Markers m;
   m.truth = cal::synth::table4_results();
-  const config::ServiceConfig cfg = config::load_service_config(g_live->config);
+  const settings::ServiceConfig cfg = settings::load_service_config(g_live->config);
   const cal::NominalModel model = cal::nominal_from_chain(cfg.model.chain);
   const cal::MarkerLayout layout = cal::load_marker_layout_file(
       std::string(EXODAQ_SOURCE_DIR) + "/config/calibration/markers_example.yaml");
@@ -797,8 +797,8 @@ Markers synthesise_markers(const std::string& dir) {
 }
 
 // Runs exodaq calibrate on `encoders` and returns the written calibration.
-config::Calibration calibrate(const std::string& encoders, const Markers& m,
-                              const std::vector<std::string>& extra, const std::string& out) {
+settings::Calibration calibrate(const std::string& encoders, const Markers& m,
+                                const std::vector<std::string>& extra, const std::string& out) {
   const std::string src = EXODAQ_SOURCE_DIR;
   std::vector<std::string> args{"calibrate",
                                 "--encoders",
@@ -817,10 +817,10 @@ config::Calibration calibrate(const std::string& encoders, const Markers& m,
   args.insert(args.end(), extra.begin(), extra.end());
   const RunResult r = exodaq(args);
   EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
-  return config::load_calibration_file(out);
+  return settings::load_calibration_file(out);
 }
 
-void expect_truth(const config::Calibration& c, const cal::ParamVector& truth,
+void expect_truth(const settings::Calibration& c, const cal::ParamVector& truth,
                   const std::string& what) {
   constexpr double kDeg = std::numbers::pi / 180.0;
   for (int j = 0; j < 6; ++j) {
@@ -891,8 +891,8 @@ TEST_F(ReplayLive, CalibrateReadsTheRecordingAndFindsTheKnownCalibration) {
 TEST(ReplayCandumpTool, SimFramesReplayToTheTruthWithinOneCount) {
   const std::string dir = make_temp_dir("replay-candump");
   const std::string config = write_sim_config(dir, unique_prefix("cd"));
-  const config::ServiceConfig cfg = config::load_service_config(config);
-  const drivers::SourceContext ctx = config::make_source_context(cfg);
+  const settings::ServiceConfig cfg = settings::load_service_config(config);
+  const drivers::SourceContext ctx = settings::make_source_context(cfg);
   const drivers::sim::SimOptions opt = drivers::sim_options_from(cfg.source, ctx);
   const drivers::sim::SimRig truth_rig(opt);
   const double homing_end = truth_rig.motion().homing_end_s();

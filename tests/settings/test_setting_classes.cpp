@@ -14,12 +14,12 @@
 #include <set>
 #include <sstream>
 
-#include "exodaq/config/content_hash.hpp"
-#include "exodaq/config/service_config.hpp"
-#include "exodaq/config/setting_classes.hpp"
+#include "exodaq/settings/content_hash.hpp"
+#include "exodaq/settings/service_config.hpp"
+#include "exodaq/settings/setting_classes.hpp"
 #include "process.hpp"
 
-using namespace exodaq::config;
+using namespace exodaq::settings;
 
 namespace {
 const std::string kConfigDir = std::string(EXODAQ_SOURCE_DIR) + "/config/";
@@ -259,7 +259,7 @@ TEST(SettingDeclarations, TheParserAppliesTheDeclaredRules) {
   const auto error = [&](const std::string& from, const std::string& to) {
     try {
       load(replaced(base, from, to));
-    } catch (const ConfigError& e) {
+    } catch (const exodaq::ConfigError& e) {
       return std::string(e.what());
     }
     return std::string("(accepted)");

@@ -20,11 +20,11 @@ namespace exodaq::test {
 inline status_t wait_for_status(const std::string& url, const std::string& prefix,
                                 const std::function<bool(const status_t&)>& done,
                                 std::chrono::seconds timeout = std::chrono::seconds(120)) {
-  msg::Subscriber sub(url);
+  messages::Subscriber sub(url);
   status_t found{};
   bool got = false;
-  sub.subscribe(msg::channel_name(prefix, msg::Kind::kStatus), msg::Kind::kStatus,
-                [&](const msg::Received& r) {
+  sub.subscribe(messages::channel_name(prefix, messages::Kind::kStatus), messages::Kind::kStatus,
+                [&](const messages::Received& r) {
                   const auto& s = std::get<status_t>(r.msg);
                   if (!got && done(s)) {
                     found = s;

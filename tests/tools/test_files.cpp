@@ -20,13 +20,13 @@
 #include <vector>
 
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/raw_sample.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "process.hpp"
 #include "sim_daemon.hpp"
 
@@ -333,15 +333,15 @@ class ToolFiles : public ::testing::Test {
     auto* r = new Recording;
     r->dir = test::make_temp_dir("tool-files");
     r->config = test::write_sim_config(r->dir, "");
-    const config::ServiceConfig cfg = config::load_service_config(r->config);
-    const auto ctx = config::make_source_context(cfg);
+    const settings::ServiceConfig cfg = settings::load_service_config(r->config);
+    const auto ctx = settings::make_source_context(cfg);
     drivers::sim::SimOptions opt = drivers::sim_options_from(cfg.source, ctx);
     opt.start_mono_ns = 1'000'000'000;
     opt.wall_offset_ns = 1'700'000'000'000'000'000LL;
     drivers::SimSource sim(opt);
     sim.start();
     r->raw = r->dir + "/raw.lcm";
-    msg::LogWriter log(r->raw);
+    messages::LogWriter log(r->raw);
     encoder_raw_t raw{};
     raw.run_id = 0x5eed;
     std::vector<std::uint8_t> buf(4096);
@@ -353,7 +353,7 @@ class ToolFiles : public ::testing::Test {
       raw.utime = s.wall_ns / 1000;
       raw.mono_ns = s.mono_ns;
       raw.seq = k;
-      msg::to_encoder_raw(s, raw);
+      messages::to_encoder_raw(s, raw);
       const int n = raw.encode(buf.data(), 0, static_cast<int>(buf.size()));
       log.write("EXO_ENCODER_RAW", raw.utime, buf.data(), static_cast<std::size_t>(n));
     }

@@ -9,7 +9,7 @@
 #include <numbers>
 #include <string>
 
-#include "exodaq/config/model_file.hpp"
+#include "exodaq/settings/model_file.hpp"
 #include "view_json.hpp"
 #include "view_scene.hpp"
 
@@ -23,7 +23,7 @@ constexpr double kL1 = 0.145, kL2 = 0.152;  // config/models/macaque_exo.yaml d4
 
 ViewModel macaque() {
   const auto m =
-      config::load_model_file(std::string(EXODAQ_SOURCE_DIR) + "/config/models/macaque_exo.yaml");
+      settings::load_model_file(std::string(EXODAQ_SOURCE_DIR) + "/config/models/macaque_exo.yaml");
   ViewModel v;
   v.name = m.name;
   v.model_file = m.file;
@@ -82,7 +82,7 @@ TEST(ViewScene, HomePostureFramesAreTheGoldenOnes) {
   EXPECT_LT((f[7] - Eigen::Vector3d(0, 0, -(kL1 + kL2))).norm(), 1e-12) << f[7].transpose();
   // And every frame is the chain's own.
   const auto model = macaque();
-  kin::JointVector q(6);
+  kinematics::JointVector q(6);
   for (int i = 0; i < 6; ++i) q[i] = kHome[static_cast<std::size_t>(i)] * kDeg;
   for (int i = 0; i < 8; ++i) {
     EXPECT_LT((f[static_cast<std::size_t>(i)] - model.chain.frame(q, i).translation()).norm(),
@@ -286,9 +286,10 @@ TEST(ViewScene, JointClassesFromTheFlags) {
 
 TEST(ViewScene, AModelWithoutSixJointsIsRefused) {
   ViewModel m = macaque();
-  std::vector<kin::JointDescription> five(m.chain.joints().begin(), m.chain.joints().end() - 1);
-  m.chain =
-      kin::Chain(kin::Convention::kStandardDh, five, kin::Pose::Identity(), kin::Pose::Identity());
+  std::vector<kinematics::JointDescription> five(m.chain.joints().begin(),
+                                                 m.chain.joints().end() - 1);
+  m.chain = kinematics::Chain(kinematics::Convention::kStandardDh, five,
+                              kinematics::Pose::Identity(), kinematics::Pose::Identity());
   try {
     ViewScene scene(m, SceneOptions{});
     FAIL() << "a five-joint model was accepted";

@@ -59,7 +59,6 @@
 #include <unordered_map>
 #include <vector>
 
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/can_codec.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
@@ -67,6 +66,7 @@
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
 
@@ -545,7 +545,7 @@ int main(int argc, char** argv) {
                  "and before SIGCONT (read when the recording ends)");
   CLI11_PARSE(app, argc, argv);
 
-  const auto cfg = exodaq::config::load_service_config(config_path);
+  const auto cfg = exodaq::settings::load_service_config(config_path);
   const std::string prefix = cfg.lcm.prefix;
   if (url.empty()) url = cfg.lcm.url;
   exodaq::drivers::can::ProtocolIds ids;
@@ -962,7 +962,7 @@ int main(int argc, char** argv) {
   // Per fault kind: the flags its cycles must show (sample bits, joint bits on
   // any joint). Truth bits and BOARD-SIM counters are keyed by the same kinds.
   const int heartbeat_every =
-      exodaq::drivers::sim_options_from(cfg.source, exodaq::config::make_source_context(cfg))
+      exodaq::drivers::sim_options_from(cfg.source, exodaq::settings::make_source_context(cfg))
           .board.heartbeat_every;
   struct Row {
     Kind kind;

@@ -16,10 +16,10 @@
 
 #include "board_sim.hpp"
 #include "exodaq/common/clock_now.hpp"
-#include "exodaq/config/service_config.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/socketcan_backend.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 namespace {
 
@@ -64,16 +64,16 @@ void add_options(CLI::App& app, Cli& c) {
 
 sim::SimFault parse_fault(const std::string& spec, std::size_t i) {
   const std::string name = "--fault #" + std::to_string(i + 1);
-  exodaq::config::MapReader m(name, exodaq::config::load_yaml_text(spec, name), "--fault");
+  exodaq::MapReader m(name, exodaq::load_yaml_text(spec, name), "--fault");
   return exodaq::drivers::parse_sim_fault(m);
 }
 
 sim::SimOptions rig_options(const Cli& cli) {
   sim::SimOptions options;
   if (!cli.config_path.empty()) {
-    const auto cfg = exodaq::config::load_service_config(cli.config_path);
+    const auto cfg = exodaq::settings::load_service_config(cli.config_path);
     options =
-        exodaq::drivers::sim_options_from(cfg.source, exodaq::config::make_source_context(cfg));
+        exodaq::drivers::sim_options_from(cfg.source, exodaq::settings::make_source_context(cfg));
     options.board.ids.board =
         static_cast<std::uint32_t>(exodaq::drivers::socketcan_board(cfg.source));
   }

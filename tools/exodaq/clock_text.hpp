@@ -8,8 +8,8 @@
 #include <optional>
 #include <string>
 
-#include "exodaq/config/service_settings.hpp"
 #include "exodaq/messages/csv.hpp"
+#include "exodaq/settings/service_settings.hpp"
 #include "exodaq/status_t.hpp"
 
 namespace exodaq::tools {
@@ -31,13 +31,14 @@ inline std::string clock_error_text(double us) {
 // For JSON: the number, or null when unknown.
 inline std::string clock_error_json(double us) {
   if (!clock_error_known(us)) return "null";
-  return msg::csv::number(us);
+  return messages::csv::number(us);
 }
 
 // "synchronised", "NOT SYNCHRONISED" or "not synchronised (ignored: clock.require_sync: ignore)".
-inline std::string clock_state_text(const status_t& s, std::optional<config::RequireSync> policy) {
+inline std::string clock_state_text(const status_t& s,
+                                    std::optional<settings::RequireSync> policy) {
   if (s.clock_synchronised) return "synchronised";
-  if (policy == config::RequireSync::kIgnore) {
+  if (policy == settings::RequireSync::kIgnore) {
     return "not synchronised (ignored: clock.require_sync: ignore)";
   }
   return "NOT SYNCHRONISED";

@@ -28,11 +28,11 @@
 #include "exodaq/calibration/report.hpp"
 #include "exodaq/calibration/solver.hpp"
 #include "exodaq/calibration/time_alignment.hpp"
-#include "exodaq/config/calibration_file.hpp"
-#include "exodaq/config/model_file.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/lcm_log.hpp"
+#include "exodaq/settings/calibration_file.hpp"
+#include "exodaq/settings/model_file.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "exodaq/version.hpp"
 
 namespace exodaq::tools {
@@ -69,15 +69,15 @@ struct CalibrateOptions {
 // angles were computed with (--recorded-calibration, else the config's).
 struct EncoderSource {
   cal::EncoderReadOptions read;
-  std::optional<config::ServiceConfig> config;
+  std::optional<settings::ServiceConfig> config;
 };
 
 EncoderSource encoder_source(const CalibrateOptions& o) {
   EncoderSource src;
-  if (!o.config.empty()) src.config = config::load_service_config(o.config);
+  if (!o.config.empty()) src.config = settings::load_service_config(o.config);
   if (!o.recorded_calibration.empty()) {
     src.read.recorded_offsets_rad =
-        config::load_calibration_file(o.recorded_calibration).encoder_offset_rad;
+        settings::load_calibration_file(o.recorded_calibration).encoder_offset_rad;
     src.read.recorded_calibration = o.recorded_calibration;
   } else if (src.config) {
     src.read.recorded_offsets_rad = src.config->calibration.encoder_offset_rad;
@@ -90,9 +90,9 @@ EncoderSource encoder_source(const CalibrateOptions& o) {
 
 bool is_lcm_log(const std::string& path) {
   try {
-    msg::LogReader probe(path);
+    messages::LogReader probe(path);
     return true;
-  } catch (const msg::LogError&) {
+  } catch (const messages::LogError&) {
     return false;
   }
 }
@@ -100,9 +100,9 @@ bool is_lcm_log(const std::string& path) {
 // The raw channel an LCM log holds for the rig, "" when none.
 std::string raw_channel(const std::string& path, const std::optional<std::string>& prefix) {
   std::string found;
-  for (const auto& [channel, n] : msg::scan_channels(path)) {
-    const auto parts = msg::split_channel(channel);
-    if (!parts || parts->kind != msg::Kind::kEncoderRaw) continue;
+  for (const auto& [channel, n] : messages::scan_channels(path)) {
+    const auto parts = messages::split_channel(channel);
+    if (!parts || parts->kind != messages::Kind::kEncoderRaw) continue;
     if (prefix && parts->prefix != *prefix) continue;
     if (!found.empty()) return "";  // several rigs: let the joint-state reader say so
     found = channel;
@@ -183,8 +183,8 @@ std::string mm(double m) {
 Setup load_setup(const CalibrateOptions& o) {
   Setup s;
   s.encoders = encoder_source(o);
-  s.model_path = o.model.empty() ? config::default_model_path() : o.model;
-  const config::KinematicModel model = config::load_model_file(s.model_path);
+  s.model_path = o.model.empty() ? settings::default_model_path() : o.model;
+  const settings::KinematicModel model = settings::load_model_file(s.model_path);
   s.nominal = cal::nominal_from_chain(model.chain);
   s.bounds = cal::load_bounds_file(o.bounds);
   if (!o.marker_layout.empty()) s.layout = cal::load_marker_layout_file(o.marker_layout);
@@ -377,7 +377,7 @@ std::string provenance_notes(const CalibrateOptions& o, const Setup& s, const ca
 
 void write_calibration(const CalibrateOptions& o, const Setup& s, const cal::Report& report,
                        const Data& d) {
-  config::Calibration out = cal::to_calibration(cal::estimates(report));
+  settings::Calibration out = cal::to_calibration(cal::estimates(report));
   auto& p = out.provenance;
   p.created_by = std::string("exodaq calibrate ") + kVersion + " (" + kGitDescribe + ")";
   p.date = utc_now();
@@ -387,7 +387,7 @@ void write_calibration(const CalibrateOptions& o, const Setup& s, const cal::Rep
   p.rms_after_m = report.after.rms_m;
   p.samples = static_cast<int>(report.points);
   p.notes = provenance_notes(o, s, report, d);
-  config::write_calibration_file(o.out, out, o.inputs());
+  settings::write_calibration_file(o.out, out, o.inputs());
   std::cout << "\ncalibration written to " << o.out << " (RMS " << mm(report.before.rms_m) << " -> "
             << mm(report.after.rms_m) << " mm)\n";
 }

@@ -20,12 +20,12 @@
 #include "command.hpp"
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/seq_account.hpp"
 #include "exodaq/messages/subscriber.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "live_rig.hpp"
 #include "rate_meter.hpp"
 
@@ -67,17 +67,17 @@ class Table {
  public:
   explicit Table(const EchoOptions& o) : opt_(o) {}
 
-  void on(const msg::Received& r, int64_t local_ns) {
+  void on(const messages::Received& r, int64_t local_ns) {
     if (const auto* j = std::get_if<joint_state_t>(&r.msg)) {
       joint_ = *j;
       joint_local_ns_ = local_ns;
-      meter_.add(msg::stamp_of(r.msg), local_ns);
+      meter_.add(messages::stamp_of(r.msg), local_ns);
     } else if (const auto* p = std::get_if<palm_pose_t>(&r.msg)) {
       palm_ = *p;
     } else if (const auto* s = std::get_if<status_t>(&r.msg)) {
       status_ = *s;
       status_local_ns_ = local_ns;
-      const msg::DaemonCounts c = msg::daemon_counts(*s);
+      const messages::DaemonCounts c = messages::daemon_counts(*s);
       meter_.add_status(s->run_id, c.seq, c.unpublished);
     } else if (const auto* e = std::get_if<encoder_raw_t>(&r.msg)) {
       raw_ = *e;
@@ -93,24 +93,25 @@ class Table {
     lines.emplace_back(buf);
     if (!joint_) {
       lines.emplace_back("waiting for " +
-                         msg::channel_name(opt_.rig.prefix, msg::Kind::kJointState) + " ...");
+                         messages::channel_name(opt_.rig.prefix, messages::Kind::kJointState) +
+                         " ...");
     } else {
       const auto& j = *joint_;
       const auto rate = meter_.rate_hz();
       const auto recv = meter_.received_fraction();
       const double age_s = static_cast<double>(local_ns - joint_local_ns_) * 1e-9;
       std::snprintf(buf, sizeof buf, "seq %lld  run %s  rate %s Hz  received %s %%  sample %s%s",
-                    static_cast<long long>(j.seq), msg::run_id_text(j.run_id).c_str(),
+                    static_cast<long long>(j.seq), messages::run_id_text(j.run_id).c_str(),
                     rate ? fmt("%.1f", *rate).c_str() : "-",
                     recv ? fmt("%.2f", *recv * 100.0).c_str() : "-",
-                    msg::sample_flag_names(j.sample_flags).c_str(),
+                    messages::sample_flag_names(j.sample_flags).c_str(),
                     age_s > 1.0 ? fmt("  (no data for %.0f s)", age_s).c_str() : "");
       lines.emplace_back(buf);
       lines.emplace_back("joint                  angle deg   vel deg/s  homed  flags");
       for (int i = 0; i < 6; ++i) {
         std::snprintf(buf, sizeof buf, "%-20.20s %11.3f %11.2f  %-5s  %s", j.name[i].c_str(),
                       j.position[i] * kRadToDeg, j.velocity[i] * kRadToDeg,
-                      j.homed[i] ? "yes" : "no", msg::joint_flag_names(j.flags[i]).c_str());
+                      j.homed[i] ? "yes" : "no", messages::joint_flag_names(j.flags[i]).c_str());
         lines.emplace_back(buf);
       }
     }
@@ -119,13 +120,14 @@ class Table {
       std::snprintf(
           buf, sizeof buf, "palm mm  x %8.2f  y %8.2f  z %8.2f  valid %s  manip %.3f%s  seq %lld",
           p.position[0] * 1e3, p.position[1] * 1e3, p.position[2] * 1e3,
-          p.valid ? "yes" : ("no (" + msg::invalid_reason_names(p.invalid_reason) + ")").c_str(),
+          p.valid ? "yes"
+                  : ("no (" + messages::invalid_reason_names(p.invalid_reason) + ")").c_str(),
           p.shoulder_manipulability, p.near_singular ? " NEAR-SINGULAR" : "",
           static_cast<long long>(p.seq));
       lines.emplace_back(buf);
     } else {
       lines.emplace_back("palm     waiting for " +
-                         msg::channel_name(opt_.rig.prefix, msg::Kind::kPalmPose));
+                         messages::channel_name(opt_.rig.prefix, messages::Kind::kPalmPose));
     }
     if (raw_) {
       const auto& e = *raw_;
@@ -139,17 +141,17 @@ class Table {
       const auto& s = *status_;
       const double age_s = static_cast<double>(local_ns - status_local_ns_) * 1e-9;
       std::snprintf(buf, sizeof buf, "status   %s  \"%.60s\"  overruns %lld  clock %s  bus %s%s",
-                    std::string(msg::state_name(s.state)).c_str(), s.message.c_str(),
+                    std::string(messages::state_name(s.state)).c_str(), s.message.c_str(),
                     static_cast<long long>(s.overruns),
-                    s.clock_synchronised                                    ? "synced"
-                    : opt_.rig.clock_policy == config::RequireSync::kIgnore ? "unsynced (ignored)"
-                                                                            : "UNSYNCED",
-                    std::string(msg::bus_state_name(s.bus_state)).c_str(),
+                    s.clock_synchronised                                      ? "synced"
+                    : opt_.rig.clock_policy == settings::RequireSync::kIgnore ? "unsynced (ignored)"
+                                                                              : "UNSYNCED",
+                    std::string(messages::bus_state_name(s.bus_state)).c_str(),
                     age_s > 1.0 ? fmt("  (stale %.0f s)", age_s).c_str() : "");
       lines.emplace_back(buf);
     } else {
       lines.emplace_back("status   waiting for " +
-                         msg::channel_name(opt_.rig.prefix, msg::Kind::kStatus));
+                         messages::channel_name(opt_.rig.prefix, messages::Kind::kStatus));
     }
 
     std::string out;
@@ -178,7 +180,7 @@ class Table {
 // goes out with the first message: it names the joints that message names.
 class CsvEcho {
  public:
-  CsvEcho(const std::string& out, std::optional<msg::Kind> kind)
+  CsvEcho(const std::string& out, std::optional<messages::Kind> kind)
       : out_(out, output_options()), kind_(kind) {}
 
   static files::OutputOptions output_options() {
@@ -188,17 +190,18 @@ class CsvEcho {
   }
 
   // False when the message is not of the kind being printed.
-  bool on(const msg::Received& r) {
-    const auto k = msg::kind_of(r.msg);
+  bool on(const messages::Received& r) {
+    const auto k = messages::kind_of(r.msg);
     if (!kind_) kind_ = k;
     if (k != *kind_) return false;  // a literal channel carrying mixed types: keep the first
     if (!header_done_) {
-      out_.write(msg::csv::line(msg::csv::header(k, msg::csv::joints_of(r.msg))) + "\n");
+      out_.write(messages::csv::line(messages::csv::header(k, messages::csv::joints_of(r.msg))) +
+                 "\n");
       header_done_ = true;
     }
     values_.clear();
-    msg::csv::append_values(r.msg, values_);
-    out_.write(msg::csv::line(values_) + "\n");
+    messages::csv::append_values(r.msg, values_);
+    out_.write(messages::csv::line(values_) + "\n");
     return true;
   }
   void flush() { out_.flush(); }
@@ -206,7 +209,7 @@ class CsvEcho {
 
  private:
   files::OutputFile out_;
-  std::optional<msg::Kind> kind_;
+  std::optional<messages::Kind> kind_;
   bool header_done_ = false;
   std::vector<std::string> values_;
 };
@@ -217,41 +220,41 @@ class CsvEcho {
 // the chosen channel's cycles, missing ones split by the daemon's counters.
 class SeqWatch {
  public:
-  void on(const msg::Received& r) {
-    const auto parts = msg::split_channel(r.channel);
+  void on(const messages::Received& r) {
+    const auto parts = messages::split_channel(r.channel);
     if (!parts) return;
-    const msg::Stamp st = msg::stamp_of(r.msg);
-    if (msg::is_startup_message(st)) return;
-    msg::RunAccount& a = runs_[{parts->prefix, st.run_id}];
+    const messages::Stamp st = messages::stamp_of(r.msg);
+    if (messages::is_startup_message(st)) return;
+    messages::RunAccount& a = runs_[{parts->prefix, st.run_id}];
     if (const auto* s = std::get_if<status_t>(&r.msg)) {
-      a.add_status(msg::daemon_counts(*s));
+      a.add_status(messages::daemon_counts(*s));
       return;
     }
-    const msg::Kind k = msg::kind_of(r.msg);
+    const messages::Kind k = messages::kind_of(r.msg);
     const std::int64_t last = a.last_seq(k);
-    if (a.add(k, st.seq) == msg::SeqStep::kRepeat &&
+    if (a.add(k, st.seq) == messages::SeqStep::kRepeat &&
         warned_.insert({parts->prefix, st.run_id}).second) {
-      print_error("WARNING: run " + msg::run_id_text(st.run_id) + " on prefix '" + parts->prefix +
-                  "': seq " + std::to_string(st.seq) + " on " + r.channel + " after seq " +
-                  std::to_string(last) +
+      print_error("WARNING: run " + messages::run_id_text(st.run_id) + " on prefix '" +
+                  parts->prefix + "': seq " + std::to_string(st.seq) + " on " + r.channel +
+                  " after seq " + std::to_string(last) +
                   ": interleaved or repeated seq of one run id (a second stream with this run "
                   "id: replay --live of a live run?); rows of both are shown");
     }
   }
   // One line per run of `kind` on `prefix` ("" when none).
-  std::vector<std::string> describe(const std::string& prefix, msg::Kind kind) const {
+  std::vector<std::string> describe(const std::string& prefix, messages::Kind kind) const {
     std::vector<std::string> out;
     for (const auto& [key, a] : runs_) {
       if (key.first != prefix) continue;
-      const msg::SeqTally t = a.tally(kind);
+      const messages::SeqTally t = a.tally(kind);
       if (t.received > 0)
-        out.push_back("run " + msg::run_id_text(key.second) + ": " + msg::describe(t));
+        out.push_back("run " + messages::run_id_text(key.second) + ": " + messages::describe(t));
     }
     return out;
   }
 
  private:
-  std::map<std::pair<std::string, std::int64_t>, msg::RunAccount> runs_;
+  std::map<std::pair<std::string, std::int64_t>, messages::RunAccount> runs_;
   std::set<std::pair<std::string, std::int64_t>> warned_;
 };
 
@@ -259,7 +262,7 @@ class SeqWatch {
 struct EchoRun {
   const EchoOptions& opt;
   std::string channel;  // the channel counted and printed
-  std::optional<msg::Kind> kind;
+  std::optional<messages::Kind> kind;
   bool csv = false;
   std::optional<CsvEcho> csv_out;
   Table table;
@@ -269,9 +272,9 @@ struct EchoRun {
   explicit EchoRun(const EchoOptions& o) : opt(o), table(o) {}
 };
 
-void subscribe(EchoRun& run, msg::Subscriber& subscriber) {
+void subscribe(EchoRun& run, messages::Subscriber& subscriber) {
   if (run.csv) {
-    subscriber.subscribe(run.channel, run.kind, [&run](const msg::Received& r) {
+    subscriber.subscribe(run.channel, run.kind, [&run](const messages::Received& r) {
       if ((run.opt.count > 0 && run.received >= run.opt.count) || !run.write_error.empty()) return;
       run.seq.on(r);
       try {
@@ -281,17 +284,19 @@ void subscribe(EchoRun& run, msg::Subscriber& subscriber) {
       }
     });
     // The rig's statuses, for the account of a per-cycle channel (not printed).
-    if (run.kind && msg::is_per_cycle(*run.kind)) {
-      subscriber.subscribe(msg::channel_name(run.opt.rig.prefix, msg::Kind::kStatus),
-                           msg::Kind::kStatus, [&run](const msg::Received& r) { run.seq.on(r); });
+    if (run.kind && messages::is_per_cycle(*run.kind)) {
+      subscriber.subscribe(messages::channel_name(run.opt.rig.prefix, messages::Kind::kStatus),
+                           messages::Kind::kStatus,
+                           [&run](const messages::Received& r) { run.seq.on(r); });
     }
     return;
   }
   std::vector<std::string> channels;
-  for (auto k : msg::kAllKinds) channels.push_back(msg::channel_name(run.opt.rig.prefix, k));
+  for (auto k : messages::kAllKinds)
+    channels.push_back(messages::channel_name(run.opt.rig.prefix, k));
   if (!run.kind) channels.push_back(run.channel);
   for (const auto& c : channels) {
-    subscriber.subscribe(c, std::nullopt, [&run, c](const msg::Received& r) {
+    subscriber.subscribe(c, std::nullopt, [&run, c](const messages::Received& r) {
       run.table.on(r, mono_now_ns());
       run.seq.on(r);
       if (c == run.channel) ++run.received;
@@ -300,7 +305,7 @@ void subscribe(EchoRun& run, msg::Subscriber& subscriber) {
 }
 
 // Until --count, --duration, a signal or a write error: kExitOk or kExitFailure.
-int echo_loop(EchoRun& run, msg::Subscriber& subscriber) {
+int echo_loop(EchoRun& run, messages::Subscriber& subscriber) {
   const EchoOptions& opt = run.opt;
   const int64_t start = mono_now_ns();
   const int64_t end = opt.duration > 0 ? start + static_cast<int64_t>(opt.duration * 1e9) : 0;
@@ -313,8 +318,8 @@ int echo_loop(EchoRun& run, msg::Subscriber& subscriber) {
     if (end && now >= end) {
       if (opt.count > 0 && run.received < opt.count) {
         print_error(std::to_string(run.received) + " of " + std::to_string(opt.count) +
-                    " messages on " + run.channel + " within " + msg::csv::number(opt.duration) +
-                    " s");
+                    " messages on " + run.channel + " within " +
+                    messages::csv::number(opt.duration) + " s");
         return kExitFailure;
       }
       break;
@@ -348,16 +353,16 @@ int run_echo(EchoOptions opt) {
   resolve_live_rig(opt.rig);
   EchoRun run(opt);
   run.csv = opt.csv || opt.out != "-" || !isatty(STDOUT_FILENO);
-  run.kind = msg::parse_kind(opt.channel);
+  run.kind = messages::parse_kind(opt.channel);
   // A name we do not know is a literal channel; its type comes from the payload.
-  run.channel = run.kind ? msg::channel_name(opt.rig.prefix, *run.kind) : opt.channel;
+  run.channel = run.kind ? messages::channel_name(opt.rig.prefix, *run.kind) : opt.channel;
   if (run.csv) run.csv_out.emplace(opt.out, run.kind);
-  msg::Subscriber subscriber(opt.rig.url);
+  messages::Subscriber subscriber(opt.rig.url);
   install_stop_handlers();
   subscribe(run, subscriber);
-  subscriber.on_mixed_runs([&run](const msg::RunMix& mix) {
+  subscriber.on_mixed_runs([&run](const messages::RunMix& mix) {
     if (!run.csv) std::fputs("\n", stdout);  // below the table
-    print_error("WARNING: " + msg::describe(mix) + "; rows of both are shown");
+    print_error("WARNING: " + messages::describe(mix) + "; rows of both are shown");
   });
   if (!run.csv) std::fputs("\x1b[?25l", stdout);  // hide the cursor while redrawing
 
@@ -375,7 +380,7 @@ int run_echo(EchoOptions opt) {
     if (!run.csv) std::fputs("\x1b[?25h\n", stdout);
     if (rc != kExitOk) return rc;  // already said (fewer than --count)
     print_error("nothing received on " + run.channel + " from " + opt.rig.url +
-                (opt.duration > 0 ? " within " + msg::csv::number(opt.duration) + " s" : "") +
+                (opt.duration > 0 ? " within " + messages::csv::number(opt.duration) + " s" : "") +
                 " (is the daemon running, with this lcm.url and prefix?)" +
                 (run.csv && opt.out != "-" ? "; " + opt.out + " not written" : ""));
     return kExitFailure;
@@ -387,7 +392,7 @@ int run_echo(EchoOptions opt) {
     std::fputs("\x1b[?25h", stdout);
   }
   std::fflush(stdout);
-  if (run.kind && msg::is_per_cycle(*run.kind)) {
+  if (run.kind && messages::is_per_cycle(*run.kind)) {
     for (const auto& line : run.seq.describe(opt.rig.prefix, *run.kind)) print_note(line);
   }
   return rc;

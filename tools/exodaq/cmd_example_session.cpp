@@ -30,10 +30,10 @@
 #include "exodaq/calibration/marker_layout.hpp"
 #include "exodaq/calibration/solver.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/calibration_file.hpp"
-#include "exodaq/config/model_file.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
+#include "exodaq/settings/calibration_file.hpp"
+#include "exodaq/settings/model_file.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 namespace exodaq::tools {
 namespace {
@@ -54,7 +54,7 @@ struct ExampleOptions {
 
 // The shipped simulated-rig config, next to the default model.
 std::string default_sim_config() {
-  const std::filesystem::path model = config::default_model_path();
+  const std::filesystem::path model = settings::default_model_path();
   return (model.parent_path().parent_path() / "sim.yaml").string();
 }
 
@@ -65,7 +65,7 @@ void write(const std::string& path, const std::string& bytes) {
 // The config's text with its relative model, calibration and task paths made
 // absolute (absolute and quoted ones are kept), so the copy works from the
 // example folder.
-std::string portable_config(const config::ServiceConfig& cfg) {
+std::string portable_config(const settings::ServiceConfig& cfg) {
   std::ifstream in(cfg.file);
   std::stringstream text;
   text << in.rdbuf();
@@ -83,8 +83,8 @@ std::string portable_config(const config::ServiceConfig& cfg) {
 // A calibration motion: after homing, rest-to-rest moves between random
 // postures spanning most of every joint's range (seed 000 §4: "all six
 // joints through as much of their range as possible").
-sim::SimOptions calibration_motion(const config::ServiceConfig& cfg, std::uint64_t seed) {
-  const drivers::SourceContext ctx = config::make_source_context(cfg);
+sim::SimOptions calibration_motion(const settings::ServiceConfig& cfg, std::uint64_t seed) {
+  const drivers::SourceContext ctx = settings::make_source_context(cfg);
   sim::SimOptions o = drivers::sim_options_from(cfg.source, ctx);
   o.seed = seed;
   o.faults.clear();
@@ -141,7 +141,7 @@ void write_recording(const ExampleOptions& o, const sim::SimOptions& so, const s
 
 // The rig as the markers see it: the sim's encoder offsets (its index
 // angles), small deviations of the nominal model, and the camera pose chosen.
-cal::ParamVector true_parameters(const config::ServiceConfig& cfg) {
+cal::ParamVector true_parameters(const settings::ServiceConfig& cfg) {
   cal::ParamVector x{};
   for (int j = 0; j < cal::kJoints; ++j) {
     x[cal::kTheta1 + j] = cfg.calibration.encoder_offset_rad[static_cast<std::size_t>(j)];
@@ -213,7 +213,7 @@ std::string bounds_yaml(const cal::ParamVector& truth) {
 
 // The capture from t0 for `seconds` at 100 Hz: 0.3 mm noise, the forearm
 // marker hidden now and then, base2 hidden for half a second.
-cal::Capture calibration_capture(const config::ServiceConfig& cfg, const sim::SimMotion& motion,
+cal::Capture calibration_capture(const settings::ServiceConfig& cfg, const sim::SimMotion& motion,
                                  const cal::ParamVector& truth, double t0, double seconds,
                                  std::uint64_t seed) {
   const cal::NominalModel model = cal::nominal_from_chain(cfg.model.chain);
@@ -323,7 +323,7 @@ cal::Capture shoulder_capture(double seconds, std::uint64_t seed) {
 
 int run_example(const ExampleOptions& o) {
   const std::string config_in = o.config.empty() ? default_sim_config() : o.config;
-  const config::ServiceConfig cfg = config::load_service_config(config_in);
+  const settings::ServiceConfig cfg = settings::load_service_config(config_in);
   std::filesystem::create_directories(o.dir);
   const std::string config = o.dir + "/exodaqd.yaml";
   write(config, portable_config(cfg));
@@ -347,7 +347,7 @@ int run_example(const ExampleOptions& o) {
   write(o.dir + "/markers_motive.csv", cal::motive_csv_bytes(c, "2026-01-01 11.00.00.000 AM"));
   write(o.dir + "/markers.yaml", layout_yaml(example_layout()));
   write(o.dir + "/bounds.yaml", bounds_yaml(truth));
-  config::write_calibration_file(o.dir + "/truth.yaml", cal::to_calibration(truth));
+  settings::write_calibration_file(o.dir + "/truth.yaml", cal::to_calibration(truth));
 
   const cal::Capture shoulder = shoulder_capture(120.0, o.seed);
   write(o.dir + "/shoulder.c3d", cal::c3d_bytes(shoulder));

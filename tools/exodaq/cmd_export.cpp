@@ -61,28 +61,28 @@ class CycleWriter {
 
   void write(const Row& row) {
     if (!row.have_joint) return;
-    const msg::csv::JointNames names = msg::csv::joint_columns(row.joint.name);
+    const messages::csv::JointNames names = messages::csv::joint_columns(row.joint.name);
     if (r_.rows == 0) {
-      for (int i = 0; i < msg::csv::kJoints; ++i) r_.joint_names[i] = row.joint.name[i];
+      for (int i = 0; i < messages::csv::kJoints; ++i) r_.joint_names[i] = row.joint.name[i];
       columns_ = names;
-      out_.write(msg::csv::line(msg::csv::cycle_header(names)) + "\n");
-      r_.first_run = msg::run_id_text(row.joint.run_id);
+      out_.write(messages::csv::line(messages::csv::cycle_header(names)) + "\n");
+      r_.first_run = messages::run_id_text(row.joint.run_id);
     } else if (names != columns_ && r_.note.empty()) {
-      r_.note = "run " + msg::run_id_text(row.joint.run_id) +
+      r_.note = "run " + messages::run_id_text(row.joint.run_id) +
                 " names its joints differently; the header names those of run " + r_.first_run;
     }
     if (r_.rows == 0 || row.joint.run_id != run_) ++r_.runs;
     run_ = row.joint.run_id;
     values_.clear();
-    msg::csv::append_cycle(row.joint, row.have_palm ? &row.palm : nullptr, values_);
-    out_.write(msg::csv::line(values_) + "\n");
+    messages::csv::append_cycle(row.joint, row.have_palm ? &row.palm : nullptr, values_);
+    out_.write(messages::csv::line(values_) + "\n");
     ++r_.rows;
   }
 
  private:
   files::OutputFile& out_;
   CsvExport& r_;
-  msg::csv::JointNames columns_{};
+  messages::csv::JointNames columns_{};
   std::int64_t run_ = 0;
   std::vector<std::string> values_;
 };
@@ -170,11 +170,11 @@ std::map<std::int64_t, std::int64_t> count_runs(const std::string& log_path,
                                                 const std::string& joint_channel,
                                                 const std::string& palm_channel) {
   std::map<std::int64_t, std::int64_t> runs;
-  msg::LogReader log(log_path);
-  msg::LogEvent ev;
+  messages::LogReader log(log_path);
+  messages::LogEvent ev;
   while (log.next(ev)) {
     if (ev.channel != joint_channel && ev.channel != palm_channel) continue;
-    if (const auto ks = msg::peek_stamp(ev.data, ev.size); ks && ks->stamp.utime != 0) {
+    if (const auto ks = messages::peek_stamp(ev.data, ev.size); ks && ks->stamp.utime != 0) {
       ++runs[ks->stamp.run_id];
     }
   }
@@ -211,9 +211,9 @@ class Exporter {
            std::optional<std::int64_t> only_run)
       : path_(log_path),
         prefix_(prefix),
-        joint_channel_(msg::channel_name(prefix, msg::Kind::kJointState)),
-        palm_channel_(msg::channel_name(prefix, msg::Kind::kPalmPose)),
-        status_channel_(msg::channel_name(prefix, msg::Kind::kStatus)),
+        joint_channel_(messages::channel_name(prefix, messages::Kind::kJointState)),
+        palm_channel_(messages::channel_name(prefix, messages::Kind::kPalmPose)),
+        status_channel_(messages::channel_name(prefix, messages::Kind::kStatus)),
         only_run_(only_run),
         writer_(out, result_),
         joints_([this](Item& m) { take(m); },
@@ -223,8 +223,8 @@ class Exporter {
 
   CsvExport run() {
     run_messages_ = count_runs(path_, joint_channel_, palm_channel_);
-    msg::LogReader log(path_);
-    msg::LogEvent ev;
+    messages::LogReader log(path_);
+    messages::LogEvent ev;
     while (log.next(ev)) {
       if (ev.follows_damage) damage_pending_ = log.damage().size();
       on_event(ev);
@@ -237,7 +237,7 @@ class Exporter {
   }
 
  private:
-  void on_event(const msg::LogEvent& ev) {
+  void on_event(const messages::LogEvent& ev) {
     const std::string_view ch = ev.channel;
     if (ch == status_channel_) {
       on_status(ev);
@@ -249,8 +249,8 @@ class Exporter {
     m.is_joint = is_joint;
     m.event = ev.number;
     m.offset = ev.offset;
-    const bool decoded = is_joint ? msg::decode_into(m.joint, ev.data, ev.size)
-                                  : msg::decode_into(m.palm, ev.data, ev.size);
+    const bool decoded = is_joint ? messages::decode_into(m.joint, ev.data, ev.size)
+                                  : messages::decode_into(m.palm, ev.data, ev.size);
     if (!decoded) {
       if (is_joint) ++damaged_cycles_;
       const auto end = ev.offset + 28 + static_cast<std::int64_t>(ch.size() + ev.size);
@@ -265,7 +265,7 @@ class Exporter {
     if (only_run_ && m.run != *only_run_) return;
     if (const std::int64_t n = run_messages_[m.run]; n < kStrayRunMessages) {
       if (is_joint) ++damaged_cycles_;
-      stray_.add(event_place(m) + ": run id " + msg::run_id_text(m.run) + " (seq " +
+      stray_.add(event_place(m) + ": run id " + messages::run_id_text(m.run) + " (seq " +
                  std::to_string(m.seq) + "), carried by " + std::to_string(n) +
                  " message(s) of the log");
       return;
@@ -277,13 +277,13 @@ class Exporter {
     (is_joint ? joints_ : palms_).feed(std::move(m));
   }
 
-  void on_status(const msg::LogEvent& ev) {
+  void on_status(const messages::LogEvent& ev) {
     status_t st;
-    if (!msg::decode_into(st, ev.data, ev.size) || st.utime == 0) return;
+    if (!messages::decode_into(st, ev.data, ev.size) || st.utime == 0) return;
     if (only_run_ && st.run_id != *only_run_) return;
     if (result_.rig.empty()) result_.rig = st.rig;
     if (run_messages_[st.run_id] >= kStrayRunMessages) {
-      accounts_[st.run_id].add_status(msg::daemon_counts(st));
+      accounts_[st.run_id].add_status(messages::daemon_counts(st));
     }
   }
 
@@ -296,21 +296,22 @@ class Exporter {
 
   void take(Item& m) {
     if (const auto mix = runs_.observe(prefix_, m.run)) {
-      throw MixedRunsError(path_ + ": " + msg::describe(*mix) + "; export one with --run-id " +
-                           msg::run_id_text(mix->first) + " or --run-id " +
-                           msg::run_id_text(mix->second));
+      throw MixedRunsError(path_ + ": " + messages::describe(*mix) + "; export one with --run-id " +
+                           messages::run_id_text(mix->first) + " or --run-id " +
+                           messages::run_id_text(mix->second));
     }
     if (m.run != run_id_) {  // a new daemon run: seq restarts
       flush_until(INT64_MAX);
       run_id_ = m.run;
       flushed_to_ = INT64_MIN;
     }
-    msg::RunAccount& account = accounts_[m.run];
-    const msg::Kind kind = m.is_joint ? msg::Kind::kJointState : msg::Kind::kPalmPose;
+    messages::RunAccount& account = accounts_[m.run];
+    const messages::Kind kind =
+        m.is_joint ? messages::Kind::kJointState : messages::Kind::kPalmPose;
     const std::int64_t last = account.last_seq(kind);
-    const msg::SeqStep step = account.add(kind, m.seq);
+    const messages::SeqStep step = account.add(kind, m.seq);
     if (m.is_joint && m.after_damage != 0) damage_cost_[m.after_damage - 1] = {last, m.seq};
-    if (step == msg::SeqStep::kRepeat || m.seq < flushed_to_) {
+    if (step == messages::SeqStep::kRepeat || m.seq < flushed_to_) {
       repeated_[m.run].add(event_place(m) + ": " + (m.is_joint ? "joint_state_t" : "palm_pose_t") +
                            " seq " + std::to_string(m.seq) + " after seq " + std::to_string(last));
       return;
@@ -334,7 +335,7 @@ class Exporter {
     }
   }
 
-  void report(const msg::LogReader& log);
+  void report(const messages::LogReader& log);
 
   std::string path_;
   std::string prefix_;
@@ -347,11 +348,11 @@ class Exporter {
   SeqJudge joints_;
   SeqJudge palms_;
   std::map<std::int64_t, std::int64_t> run_messages_;
-  msg::RunMixDetector runs_;
+  messages::RunMixDetector runs_;
   std::int64_t run_id_ = 0;
   std::int64_t flushed_to_ = INT64_MIN;  // rows below this seq are written
   std::map<std::int64_t, Row> pending_;  // by seq, this run
-  std::map<std::int64_t, msg::RunAccount> accounts_;
+  std::map<std::int64_t, messages::RunAccount> accounts_;
   std::size_t damage_pending_ = 0;
   std::int64_t damaged_cycles_ = 0;  // joint messages lost to damage in the log
   // Per damaged stretch: the joint seq before and after it.
@@ -362,11 +363,11 @@ class Exporter {
   std::map<std::int64_t, Anomalies> repeated_;
 };
 
-void Exporter::report(const msg::LogReader& log) {
+void Exporter::report(const messages::LogReader& log) {
   std::vector<std::string> problems;
   const auto& damage = log.damage();
   for (std::size_t i = 0; i < damage.size(); ++i) {
-    std::string line = msg::LogReader::damage_line(path_, damage[i]);
+    std::string line = messages::LogReader::damage_line(path_, damage[i]);
     if (const auto it = damage_cost_.find(i); it != damage_cost_.end() && it->second.first >= 0) {
       const auto [before, after] = it->second;
       const std::int64_t cycles = after > before ? after - before - 1 : 0;
@@ -386,21 +387,23 @@ void Exporter::report(const msg::LogReader& log) {
                               " message(s) with a run id no run of the log has (a damaged run "
                               "id); not exported:");
   for (const auto& [run, a] : out_of_line_) {
-    a.report(problems, path_ + ": run " + msg::run_id_text(run) + ": " + std::to_string(a.count) +
+    a.report(problems, path_ + ": run " + messages::run_id_text(run) + ": " +
+                           std::to_string(a.count) +
                            " message(s) with a seq out of line with their neighbours (a damaged "
                            "seq, or a second stream with this run id: replay --live of a live "
                            "run?); not exported:");
   }
   for (const auto& [run, a] : repeated_) {
-    a.report(problems, path_ + ": run " + msg::run_id_text(run) + ": " + std::to_string(a.count) +
+    a.report(problems, path_ + ": run " + messages::run_id_text(run) + ": " +
+                           std::to_string(a.count) +
                            " message(s) repeat seq numbers already read (the log holds this run "
                            "twice: logs joined with cat, two recorders, or a second stream with "
                            "this run id); not exported again:");
   }
   for (const auto& [run, account] : accounts_) {
-    const msg::SeqTally t = account.tally(msg::Kind::kJointState);
+    const messages::SeqTally t = account.tally(messages::Kind::kJointState);
     if (t.received == 0) continue;
-    std::string line = "run " + msg::run_id_text(run) + ": " + msg::describe(t);
+    std::string line = "run " + messages::run_id_text(run) + ": " + messages::describe(t);
     if (t.widest > 0) {
       line += "; widest hole seq " + std::to_string(t.widest_from) + ".." +
               std::to_string(t.widest_from + t.widest - 1);
@@ -420,15 +423,15 @@ void Exporter::report(const msg::LogReader& log) {
 
 std::string choose_prefix(const std::string& log_path, const std::optional<std::string>& given) {
   std::set<std::string> prefixes;
-  for (const auto& [channel, count] : msg::scan_channels(log_path)) {
-    const auto parts = msg::split_channel(channel);
-    if (parts && parts->kind == msg::Kind::kJointState) prefixes.insert(parts->prefix);
+  for (const auto& [channel, count] : messages::scan_channels(log_path)) {
+    const auto parts = messages::split_channel(channel);
+    if (parts && parts->kind == messages::Kind::kJointState) prefixes.insert(parts->prefix);
   }
   if (given) {
     if (prefixes.count(*given) == 0) {
       throw std::runtime_error(log_path + ": no channel " +
-                               msg::channel_name(*given, msg::Kind::kJointState) + " (--prefix '" +
-                               *given + "')");
+                               messages::channel_name(*given, messages::Kind::kJointState) +
+                               " (--prefix '" + *given + "')");
     }
     return *given;
   }
@@ -461,7 +464,7 @@ struct ExportOptions {
 
 std::optional<std::int64_t> chosen_run(const ExportOptions& o) {
   if (o.run_id.empty()) return std::nullopt;
-  const auto id = msg::parse_run_id(o.run_id);
+  const auto id = messages::parse_run_id(o.run_id);
   if (!id) throw std::runtime_error("--run-id '" + o.run_id + "': not 16 hex digits");
   return id;
 }
@@ -475,8 +478,8 @@ int run_export(const ExportOptions& o, bool prefix_given) {
   const std::string prefix =
       choose_prefix(o.log, prefix_given ? std::optional(o.prefix) : std::nullopt);
   if (common_options().verbose) {
-    print_error("reading " + msg::channel_name(prefix, msg::Kind::kJointState) + " and " +
-                msg::channel_name(prefix, msg::Kind::kPalmPose) + " of " + o.log);
+    print_error("reading " + messages::channel_name(prefix, messages::Kind::kJointState) + " and " +
+                messages::channel_name(prefix, messages::Kind::kPalmPose) + " of " + o.log);
   }
   files::OutputFile out(o.out, oo);
   const CsvExport r = export_log_csv(o.log, prefix, out, only_run);

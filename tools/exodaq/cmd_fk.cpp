@@ -8,9 +8,9 @@
 #include <vector>
 
 #include "command.hpp"
-#include "exodaq/config/model_file.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
+#include "exodaq/settings/model_file.hpp"
 #include "json_out.hpp"
 
 namespace exodaq::tools {
@@ -25,8 +25,8 @@ struct FkOptions {
 
 // The joint values given on the command line, in radians; nullopt (after an
 // error message) when their number or a value is wrong.
-std::optional<kin::JointVector> given_joints(const FkOptions& o,
-                                             const config::KinematicModel& model) {
+std::optional<kinematics::JointVector> given_joints(const FkOptions& o,
+                                                    const settings::KinematicModel& model) {
   const bool in_deg = !o.deg.empty();
   const std::vector<double>& given = in_deg ? o.deg : o.rad;
   const int n = model.chain.joint_count();
@@ -35,24 +35,24 @@ std::optional<kin::JointVector> given_joints(const FkOptions& o,
                 std::to_string(given.size()) + " joint values given");
     return std::nullopt;
   }
-  kin::JointVector q(n);
+  kinematics::JointVector q(n);
   for (int i = 0; i < n; ++i) {
     const double v = given[static_cast<std::size_t>(i)];
     if (!std::isfinite(v)) {
       print_error("joint " + std::to_string(i + 1) + " value is not a finite number");
       return std::nullopt;
     }
-    q[i] = in_deg ? v * config::kDegToRad : v;
+    q[i] = in_deg ? v * exodaq::kDegToRad : v;
   }
   return q;
 }
 
 // What `fk` computed, for either output form.
 struct FkResult {
-  const config::KinematicModel& model;
+  const settings::KinematicModel& model;
   std::string path;
-  kin::JointVector q;
-  kin::RigPose pose;
+  kinematics::JointVector q;
+  kinematics::RigPose pose;
   std::vector<std::string> outside;  // joints outside their limits (computed anyway)
 };
 
@@ -88,7 +88,7 @@ void print_text(const FkResult& r) {
   const auto& pose = r.pose;
   std::printf("model: %s (%s)\n", r.model.name.c_str(), r.path.c_str());
   std::printf("joints (deg):");
-  for (int i = 0; i < r.q.size(); ++i) std::printf(" %.4f", z(r.q[i] / config::kDegToRad));
+  for (int i = 0; i < r.q.size(); ++i) std::printf(" %.4f", z(r.q[i] / exodaq::kDegToRad));
   std::printf("\n");
   const auto& p = pose.palm_position;
   std::printf("palm position (m):            %10.6f %10.6f %10.6f\n", z(p.x()), z(p.y()), z(p.z()));
@@ -120,12 +120,12 @@ int run_fk(const FkOptions& o) {
     print_error("give the joints with --joints-deg or --joints-rad");
     return kExitUsage;
   }
-  const std::string path = o.model.empty() ? config::default_model_path() : o.model;
-  const config::KinematicModel model = config::load_model_file(path);
-  const std::optional<kin::JointVector> q = given_joints(o, model);
+  const std::string path = o.model.empty() ? settings::default_model_path() : o.model;
+  const settings::KinematicModel model = settings::load_model_file(path);
+  const std::optional<kinematics::JointVector> q = given_joints(o, model);
   if (!q) return kExitUsage;
   FkResult r{model, path, *q, {}, {}};
-  kin::evaluate_rig(model.chain, model.rig, r.q, r.pose);
+  kinematics::evaluate_rig(model.chain, model.rig, r.q, r.pose);
   for (int i = 0; i < r.q.size(); ++i) {
     const auto& j = model.chain.joints()[static_cast<std::size_t>(i)];
     if (r.q[i] < j.limits.lower || r.q[i] > j.limits.upper) r.outside.push_back(j.name);
@@ -141,7 +141,7 @@ int run_fk(const FkOptions& o) {
 std::function<int()> setup_fk(CLI::App& sub) {
   auto o = std::make_shared<FkOptions>();
   sub.add_option("--model", o->model,
-                 "kinematic model file (default: " + config::default_model_path() + ")");
+                 "kinematic model file (default: " + settings::default_model_path() + ")");
   auto* deg = sub.add_option("--joints-deg", o->deg, "joint angles in degrees, a,b,c,...")
                   ->delimiter(',')
                   ->expected(1, -1);

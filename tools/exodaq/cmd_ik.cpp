@@ -13,9 +13,9 @@
 #include <vector>
 
 #include "command.hpp"
-#include "exodaq/config/model_file.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/kinematics/ik.hpp"
+#include "exodaq/settings/model_file.hpp"
 #include "json_out.hpp"
 
 namespace exodaq::tools {
@@ -46,14 +46,14 @@ bool all_finite(const std::vector<double>& v) {
 }
 
 // The target pose from the options, or an error message.
-std::string read_target(const IkCliOptions& o, kin::Pose& target) {
+std::string read_target(const IkCliOptions& o, kinematics::Pose& target) {
   if (o.position.size() != 3 || !all_finite(o.position)) {
     return "--palm-position needs three finite numbers x,y,z (metres)";
   }
   if (o.rotation.empty() == o.quaternion.empty()) {
     return "give the palm orientation with --palm-rotation or --palm-quaternion";
   }
-  target = kin::Pose::Identity();
+  target = kinematics::Pose::Identity();
   target.translation() = Eigen::Vector3d(o.position[0], o.position[1], o.position[2]);
   if (!o.quaternion.empty()) {
     if (o.quaternion.size() != 4 || !all_finite(o.quaternion)) {
@@ -82,15 +82,15 @@ std::string read_target(const IkCliOptions& o, kin::Pose& target) {
   return "";
 }
 
-std::string outside_list(const kin::Chain& chain, const kin::JointVector& q) {
+std::string outside_list(const kinematics::Chain& chain, const kinematics::JointVector& q) {
   std::string out;
   for (int i = 0; i < chain.joint_count(); ++i) {
     const auto& j = chain.joints()[static_cast<std::size_t>(i)];
     if (q[i] < j.limits.lower - 1e-12 || q[i] > j.limits.upper + 1e-12) {
       char buf[160];
       std::snprintf(buf, sizeof buf, "%s%s (%.4f deg, limits [%.4f, %.4f])",
-                    out.empty() ? "" : ", ", j.name.c_str(), q[i] / config::kDegToRad,
-                    j.limits.lower / config::kDegToRad, j.limits.upper / config::kDegToRad);
+                    out.empty() ? "" : ", ", j.name.c_str(), q[i] / exodaq::kDegToRad,
+                    j.limits.lower / exodaq::kDegToRad, j.limits.upper / exodaq::kDegToRad);
       out += buf;
     }
   }
@@ -98,11 +98,11 @@ std::string outside_list(const kin::Chain& chain, const kin::JointVector& q) {
 }
 
 struct IkRun {
-  const config::KinematicModel* model = nullptr;
+  const settings::KinematicModel* model = nullptr;
   std::string path;
-  kin::Pose target;
-  const kin::IkSolver* solver = nullptr;
-  const kin::IkResult* result = nullptr;
+  kinematics::Pose target;
+  const kinematics::IkSolver* solver = nullptr;
+  const kinematics::IkResult* result = nullptr;
   double free_value = std::numeric_limits<double>::quiet_NaN();
   const IkCliOptions* options = nullptr;
 };
@@ -112,7 +112,7 @@ std::string free_joint_name(const IkRun& r) {
   return f < 0 ? "" : r.model->chain.joints()[static_cast<std::size_t>(f)].name;
 }
 
-JsonObject solution_json(const IkRun& r, const kin::IkSolution& s) {
+JsonObject solution_json(const IkRun& r, const kinematics::IkSolution& s) {
   std::vector<std::string> outside;
   for (int i = 0; i < r.model->chain.joint_count(); ++i) {
     const auto& j = r.model->chain.joints()[static_cast<std::size_t>(i)];
@@ -120,7 +120,7 @@ JsonObject solution_json(const IkRun& r, const kin::IkSolution& s) {
       outside.push_back(j.name);
     }
   }
-  const kin::JointVector deg = s.q / config::kDegToRad;
+  const kinematics::JointVector deg = s.q / exodaq::kDegToRad;
   const std::string interval =
       std::isfinite(s.free_lower)
           ? "[" + json_measure(s.free_lower) + ", " + json_measure(s.free_upper) + "]"
@@ -155,14 +155,14 @@ void print_json(const IkRun& r) {
       .add("joint_names", json_strings(names))
       .add("palm_position_m", json_array(Eigen::Vector3d(r.target.translation())))
       .add("palm_rotation", rotation)
-      .add("palm_quaternion_wxyz", json_array(kin::quaternion_wxyz(R)))
+      .add("palm_quaternion_wxyz", json_array(kinematics::quaternion_wxyz(R)))
       .add("solver", json_string(r.solver->analytical() ? "closed_form" : "numerical"))
       .add("redundancy", std::to_string(r.solver->redundancy()))
       .add("free_joint", free.empty() ? "null" : json_string(free))
       .add("free_joint_value_rad", json_number(r.free_value))
       .add("position_tolerance_m", json_number(r.options->position_tolerance))
       .add("orientation_tolerance_rad", json_number(r.options->orientation_tolerance))
-      .add("status", json_string(kin::to_string(r.result->status)))
+      .add("status", json_string(kinematics::to_string(r.result->status)))
       .add("truncated", json_bool(r.result->truncated))
       .add("best_position_residual_m", json_number(r.result->best_position_residual))
       .add("best_orientation_residual_rad", json_number(r.result->best_orientation_residual))
@@ -177,7 +177,7 @@ double z(double v) {
 }
 // Degrees as printed with four decimals, -0.0000 as 0.0000.
 double deg4(double rad) {
-  const double d = rad / config::kDegToRad;
+  const double d = rad / exodaq::kDegToRad;
   return std::abs(d) < 5e-5 ? 0.0 : d;
 }
 
@@ -199,7 +199,7 @@ void print_header(const IkRun& r) {
     std::printf("; finitely many solutions\n");
   } else if (std::isfinite(r.free_value)) {
     std::printf("; joint %d (%s) redundant, fixed at %.4f deg\n", r.solver->free_joint() + 1,
-                free.c_str(), r.free_value / config::kDegToRad);
+                free.c_str(), r.free_value / exodaq::kDegToRad);
   } else {
     std::printf(
         "; joint %d (%s) redundant: one solution per branch (an interval of it), the posture of "
@@ -211,7 +211,7 @@ void print_header(const IkRun& r) {
 void print_solutions(const IkRun& r) {
   const auto& sols = r.result->solutions;
   for (std::size_t i = 0; i < sols.size(); ++i) {
-    const kin::IkSolution& s = sols[i];
+    const kinematics::IkSolution& s = sols[i];
     std::printf("#%zu joints (deg):", i + 1);
     for (int j = 0; j < s.q.size(); ++j) std::printf(" %.4f", deg4(s.q[j]));
     std::printf("\n");
@@ -230,17 +230,17 @@ void print_solutions(const IkRun& r) {
 }
 
 void print_status(const IkRun& r) {
-  const kin::IkResult& res = *r.result;
+  const kinematics::IkResult& res = *r.result;
   switch (res.status) {
-    case kin::IkStatus::kSolved:
+    case kinematics::IkStatus::kSolved:
       std::printf("status: solved, %zu solution%s within the joint limits%s\n",
                   res.solutions.size(), res.solutions.size() == 1 ? "" : "s",
                   res.truncated ? " (more exist: list truncated)" : "");
       break;
-    case kin::IkStatus::kOutsideLimits:
+    case kinematics::IkStatus::kOutsideLimits:
       std::printf("status: outside_limits: the pose is reached only outside the joint limits\n");
       break;
-    case kin::IkStatus::kUnreachable:
+    case kinematics::IkStatus::kUnreachable:
       std::printf(
           "status: unreachable: no joint vector reaches this palm pose within %.1e m and %.1e "
           "rad; the nearest misses by %.3e m and %.3e rad\n",
@@ -257,24 +257,24 @@ void print_status(const IkRun& r) {
 }
 
 int run_ik(const IkCliOptions& o) {
-  kin::Pose target;
+  kinematics::Pose target;
   if (const std::string e = read_target(o, target); !e.empty()) return usage_error(e);
   if (!(o.position_tolerance > 0.0) || !(o.orientation_tolerance > 0.0)) {
     return usage_error("tolerances must be > 0");
   }
-  const std::string path = o.model.empty() ? config::default_model_path() : o.model;
-  config::KinematicModel model;
+  const std::string path = o.model.empty() ? settings::default_model_path() : o.model;
+  settings::KinematicModel model;
   try {
-    model = config::load_model_file(path);
-  } catch (const config::ConfigError& e) {
+    model = settings::load_model_file(path);
+  } catch (const exodaq::ConfigError& e) {
     return usage_error(e.what());
   }
-  kin::IkOptions options;
+  kinematics::IkOptions options;
   options.position_tolerance = o.position_tolerance;
   options.orientation_tolerance = o.orientation_tolerance;
-  std::unique_ptr<kin::IkSolver> solver;
+  std::unique_ptr<kinematics::IkSolver> solver;
   try {
-    solver = std::make_unique<kin::IkSolver>(model.chain, model.rig, options);
+    solver = std::make_unique<kinematics::IkSolver>(model.chain, model.rig, options);
   } catch (const std::invalid_argument& e) {
     return usage_error(std::string(path) + ": " + e.what());
   }
@@ -288,7 +288,7 @@ int run_ik(const IkCliOptions& o) {
     if (free.size() != 1 || !std::isfinite(free[0])) {
       return usage_error("the free joint's value must be one finite number");
     }
-    run.free_value = o.free_deg.empty() ? free[0] : free[0] * config::kDegToRad;
+    run.free_value = o.free_deg.empty() ? free[0] : free[0] * exodaq::kDegToRad;
     run.result = &solver->solve_fixed(target, run.free_value);
   } else {
     run.result = &solver->solve(target);
@@ -300,13 +300,13 @@ int run_ik(const IkCliOptions& o) {
     print_status(run);
     print_solutions(run);
   }
-  return run.result->status == kin::IkStatus::kSolved ? kExitOk : kExitFailure;
+  return run.result->status == kinematics::IkStatus::kSolved ? kExitOk : kExitFailure;
 }
 
 std::function<int()> setup_ik(CLI::App& sub) {
   auto o = std::make_shared<IkCliOptions>();
   sub.add_option("--model", o->model,
-                 "kinematic model file (default: " + config::default_model_path() + ")");
+                 "kinematic model file (default: " + settings::default_model_path() + ")");
   sub.add_option("--palm-position", o->position, "palm position x,y,z in metres (world frame)")
       ->delimiter(',')
       ->expected(1, -1);

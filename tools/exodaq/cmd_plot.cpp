@@ -21,7 +21,7 @@
 #include "child_process.hpp"
 #include "command.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/service_config.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "export_csv.hpp"
 
 namespace exodaq::tools {
@@ -93,7 +93,7 @@ int run_plot(const PlotOptions& o) {
   std::string calibration = o.calibration;
   double threshold = -1.0;  // unknown: the script says so
   if (!o.config.empty()) {
-    const config::ServiceConfig cfg = config::load_service_config(o.config);
+    const settings::ServiceConfig cfg = settings::load_service_config(o.config);
     if (calibration.empty()) calibration = cfg.calibration_path;
     threshold = cfg.singularity_threshold;
   }
@@ -117,7 +117,7 @@ int run_plot(const PlotOptions& o) {
       "--joint-names", names};
   if (threshold >= 0.0) {
     args.push_back("--threshold");
-    args.push_back(msg::csv::number(threshold));
+    args.push_back(messages::csv::number(threshold));
   }
   if (common_options().quiet) args.push_back("--quiet");
   const int rc = run_child(args);

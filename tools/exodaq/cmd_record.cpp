@@ -33,13 +33,13 @@
 #include "command.hpp"
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/udpm_sender.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/message.hpp"
 #include "exodaq/messages/run_mix.hpp"
 #include "exodaq/messages/seq_account.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "json_out.hpp"
 #include "live_rig.hpp"
 #include "record_receiver.hpp"
@@ -132,7 +132,7 @@ class ChannelFilter {
 struct RunState {
   std::string prefix;
   std::int64_t run_id = 0;
-  msg::RunAccount account;
+  messages::RunAccount account;
   std::optional<status_t> last_status;
   bool stopped = false;  // its STOPPING status heard
   bool repeat_reported = false;
@@ -140,8 +140,8 @@ struct RunState {
   bool covered() const {
     if (stopped) return true;
     std::int64_t last = -1;
-    for (const msg::Kind k :
-         {msg::Kind::kJointState, msg::Kind::kPalmPose, msg::Kind::kEncoderRaw}) {
+    for (const messages::Kind k :
+         {messages::Kind::kJointState, messages::Kind::kPalmPose, messages::Kind::kEncoderRaw}) {
       last = std::max(last, account.last_seq(k));
     }
     return last < 0 || (last_status && last_status->seq >= last);
@@ -213,10 +213,10 @@ class Recording {
   std::string stem_;
   std::string ext_;
   int index_ = 0;
-  std::unique_ptr<msg::LogAppender> log_;
+  std::unique_ptr<messages::LogAppender> log_;
   std::int64_t file_start_ns_ = 0;
   std::map<std::uint64_t, Sender> senders_;
-  msg::RunMixDetector mix_;
+  messages::RunMixDetector mix_;
   std::string channel_;
 };
 
@@ -229,8 +229,8 @@ void Recording::open_next(int index) {
       path = stem_ + n + ext_;
     }
     try {
-      log_ = std::make_unique<msg::LogAppender>(path);
-    } catch (const msg::LogError& e) {
+      log_ = std::make_unique<messages::LogAppender>(path);
+    } catch (const messages::LogError& e) {
       // A part name taken by an earlier recording: the next number (the first
       // part was checked before recording started).
       if (split_ && index > 0 && access(path.c_str(), F_OK) == 0) continue;
@@ -354,7 +354,7 @@ void Recording::on_message(const std::string& channel, const std::uint8_t* data,
     }
     log_->write(channel, recv_ns / 1000, data, size);
     ++events;
-  } catch (const msg::LogError& e) {
+  } catch (const messages::LogError& e) {
     write_error = e.what();
   }
   account(channel, data, size);
@@ -362,22 +362,23 @@ void Recording::on_message(const std::string& channel, const std::uint8_t* data,
 
 // The cycles of each exodaq run: per-cycle seq and the daemon's counters.
 void Recording::account(const std::string& channel, const std::uint8_t* data, std::size_t size) {
-  const auto parts = msg::split_channel(channel);
+  const auto parts = messages::split_channel(channel);
   if (!parts) return;
-  const auto ks = msg::peek_stamp(data, size);
+  const auto ks = messages::peek_stamp(data, size);
   if (!ks || ks->kind != parts->kind || ks->stamp.utime == 0) return;  // start-up messages: 0
-  const bool per_cycle = msg::is_per_cycle(ks->kind);
-  if (!per_cycle && ks->kind != msg::Kind::kStatus) return;
+  const bool per_cycle = messages::is_per_cycle(ks->kind);
+  if (!per_cycle && ks->kind != messages::Kind::kStatus) return;
   if (const auto mix = mix_.observe(parts->prefix, ks->stamp.run_id)) {
-    print_error("WARNING: " + msg::describe(*mix));
+    print_error("WARNING: " + messages::describe(*mix));
   }
   RunState& r = runs_[{parts->prefix, ks->stamp.run_id}];
   r.prefix = parts->prefix;
   r.run_id = ks->stamp.run_id;
   if (per_cycle) {
-    if (r.account.add(ks->kind, ks->stamp.seq) == msg::SeqStep::kRepeat && !r.repeat_reported) {
+    if (r.account.add(ks->kind, ks->stamp.seq) == messages::SeqStep::kRepeat &&
+        !r.repeat_reported) {
       r.repeat_reported = true;
-      print_error("WARNING: run " + msg::run_id_text(r.run_id) + " on prefix '" + r.prefix +
+      print_error("WARNING: run " + messages::run_id_text(r.run_id) + " on prefix '" + r.prefix +
                   "': seq " + std::to_string(ks->stamp.seq) + " of " + channel +
                   " is not new (last " + std::to_string(r.account.last_seq(ks->kind)) +
                   "): a second stream with this run id (replay --live of a live run?); counted "
@@ -386,8 +387,8 @@ void Recording::account(const std::string& channel, const std::uint8_t* data, st
     return;
   }
   status_t st;
-  if (!msg::decode_into(st, data, size)) return;
-  r.account.add_status(msg::daemon_counts(st));
+  if (!messages::decode_into(st, data, size)) return;
+  r.account.add_status(messages::daemon_counts(st));
   if (!r.last_status || st.seq >= r.last_status->seq) r.last_status = st;
   if (st.state == status_t::STATE_STOPPING) r.stopped = true;
 }
@@ -396,7 +397,7 @@ bool Recording::flush() {
   if (!write_error.empty()) return false;
   try {
     log_->flush();
-  } catch (const msg::LogError& e) {
+  } catch (const messages::LogError& e) {
     write_error = e.what();
   }
   return write_error.empty();
@@ -408,7 +409,7 @@ void Recording::close() {
   files.back().bytes = log_->bytes();
   try {
     log_->close();
-  } catch (const msg::LogError& e) {
+  } catch (const messages::LogError& e) {
     if (write_error.empty()) write_error = e.what();
   }
   if (files.back().events == 0 && write_error.empty()) {  // nothing recorded into it
@@ -443,7 +444,7 @@ struct Totals {
   Loss loss;
 };
 
-JsonObject tally_json(const msg::SeqTally& t) {
+JsonObject tally_json(const messages::SeqTally& t) {
   JsonObject j;
   j.add("received", std::to_string(t.received))
       .add("first_seq", std::to_string(t.first))
@@ -466,7 +467,7 @@ struct Setup {
 Setup prepare(RecordOptions& o) {
   Setup s;
   double rate = 1000.0;
-  if (!o.rig.config.empty()) rate = config::load_service_config(o.rig.config).loop.rate_hz;
+  if (!o.rig.config.empty()) rate = settings::load_service_config(o.rig.config).loop.rate_hz;
   resolve_live_rig(o.rig);
   s.url = o.rig.url;
   s.rate_hz = rate;
@@ -478,7 +479,7 @@ Setup prepare(RecordOptions& o) {
   s.address = *address;
   s.pattern = !o.channels.empty() ? o.channels
                                   : (o.rig.prefix_given || !o.rig.prefix.empty()
-                                         ? msg::regex_escape(o.rig.prefix) + ".*"
+                                         ? messages::regex_escape(o.rig.prefix) + ".*"
                                          : std::string(".*"));
   const auto cycles = static_cast<std::int64_t>(std::ceil(o.catch_up_s * rate));
   s.needed = o.rcvbuf > 0 ? o.rcvbuf : cycles * kMessagesPerCycle * kDatagramCharge;
@@ -538,9 +539,9 @@ int report(const RecordOptions& o, const Setup& s, const record::Receiver& rx,
   std::vector<JsonObject> runs;
   std::vector<std::string> lines;
   for (const auto& [key, r] : rec.runs_) {
-    const msg::SeqTally joints = r.account.tally(msg::Kind::kJointState);
-    const msg::SeqTally palms = r.account.tally(msg::Kind::kPalmPose);
-    const msg::SeqTally raws = r.account.tally(msg::Kind::kEncoderRaw);
+    const messages::SeqTally joints = r.account.tally(messages::Kind::kJointState);
+    const messages::SeqTally palms = r.account.tally(messages::Kind::kPalmPose);
+    const messages::SeqTally raws = r.account.tally(messages::Kind::kEncoderRaw);
     total.cycles += joints.received;
     total.loss.missing += joints.missing;
     total.loss.skipped += joints.unpublished;
@@ -550,7 +551,8 @@ int report(const RecordOptions& o, const Setup& s, const record::Receiver& rx,
       total.loss.repeated += t->repeated;
     }
     JsonObject j;
-    j.add("prefix", json_string(r.prefix)).add("run_id", json_string(msg::run_id_text(r.run_id)));
+    j.add("prefix", json_string(r.prefix))
+        .add("run_id", json_string(messages::run_id_text(r.run_id)));
     j.add("joint_state", tally_json(joints).text(6))
         .add("palm_pose", tally_json(palms).text(6))
         .add("encoder_raw", tally_json(raws).text(6));
@@ -560,7 +562,7 @@ int report(const RecordOptions& o, const Setup& s, const record::Receiver& rx,
       d.add("seq", std::to_string(ls.seq))
           .add("cycles", std::to_string(ls.cycles))
           .add("overruns", std::to_string(ls.overruns))
-          .add("unpublished_seq", std::to_string(msg::daemon_counts(ls).unpublished))
+          .add("unpublished_seq", std::to_string(messages::daemon_counts(ls).unpublished))
           .add("publish_failures", std::to_string(ls.publish_failures))
           .add("stopped", json_bool(r.stopped));
       j.add("daemon_last_status", d.text(6));
@@ -568,12 +570,13 @@ int report(const RecordOptions& o, const Setup& s, const record::Receiver& rx,
       j.add("daemon_last_status", "null");
     }
     runs.push_back(j);
-    std::string line = "run " + msg::run_id_text(r.run_id) + " (prefix '" + r.prefix +
-                       "'): " + msg::describe(joints);
-    for (const auto& [name, t] : {std::pair<const char*, const msg::SeqTally*>{"palm_pose", &palms},
-                                  {"encoder_raw", &raws}}) {
+    std::string line = "run " + messages::run_id_text(r.run_id) + " (prefix '" + r.prefix +
+                       "'): " + messages::describe(joints);
+    for (const auto& [name, t] :
+         {std::pair<const char*, const messages::SeqTally*>{"palm_pose", &palms},
+          {"encoder_raw", &raws}}) {
       if (t->received > 0 && (t->lost > 0 || t->repeated > 0)) {
-        line += "; " + std::string(name) + ": " + msg::describe(*t);
+        line += "; " + std::string(name) + ": " + messages::describe(*t);
       }
     }
     if (r.last_status) {

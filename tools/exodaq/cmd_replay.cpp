@@ -7,7 +7,7 @@
 //                 [--calibration FILE] [--channel NAME] [-p PREFIX] [-q] [-v]
 // Exit 1 when the input was damaged or malformed (a damaged or cut LCM log,
 // candump lines that do not parse): the output holds what could be replayed.
-// The output is written as a files::OutputFile (through msg::LogWriter): it
+// The output is written as a files::OutputFile (through messages::LogWriter): it
 // appears complete or not at all, and never replaces an input.
 //
 // Cycles are driven one by one on this thread (Acquisition::run_cycle). Into
@@ -37,7 +37,6 @@
 #include "command.hpp"
 #include "exodaq/common/clock_now.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/builder.hpp"
 #include "exodaq/core/publisher.hpp"
@@ -46,6 +45,7 @@
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/message.hpp"
 #include "exodaq/messages/subscriber.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 namespace exodaq::tools {
 namespace {
@@ -109,15 +109,15 @@ class LcmLogSink final : public core::MessageSink {
     if (!armed_) return true;
     const std::uint8_t* data = msg.bytes.data();
     std::size_t size = msg.size;
-    if (msg.channel == msg::Kind::kJointState) {
+    if (msg.channel == messages::Kind::kJointState) {
       if (size < kMonoNsOffset + 8) return false;
       last_mono_ns_ = big_endian64(data + kMonoNsOffset);
-    } else if (msg.channel == msg::Kind::kPalmPose) {
+    } else if (msg.channel == messages::Kind::kPalmPose) {
       if (size <= kPalmValidOffset) return false;
       ++palm_messages_;
       if (data[kPalmValidOffset] != 0) ++valid_;
-    } else if (msg.channel == msg::Kind::kStatus) {
-      if (!msg::decode_into(status_, data, size)) return false;
+    } else if (msg.channel == messages::Kind::kStatus) {
+      if (!messages::decode_into(status_, data, size)) return false;
       status_.mono_ns = last_mono_ns_;
       status_.work_p50_us = status_.work_p99_us = status_.work_max_us = 0.0;
       const int n = status_.encode(buffer_.data(), 0, static_cast<int>(buffer_.size()));
@@ -146,7 +146,7 @@ class LcmLogSink final : public core::MessageSink {
   std::int64_t valid_palm() const noexcept { return valid_; }
 
  private:
-  msg::LogWriter log_;
+  messages::LogWriter log_;
   bool armed_ = false;
   std::int64_t last_mono_ns_ = 0;
   std::int64_t palm_messages_ = 0;
@@ -302,7 +302,7 @@ ReplayRun drive_cycles(core::Acquisition& acq, const drivers::ReplaySource& repl
   return run;
 }
 
-void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
+void print_report(const ReplayOptions& o, const settings::ServiceConfig& cfg,
                   const drivers::ReplaySource& replay, const std::string& prefix,
                   const LcmLogSink* sink, core::Acquisition& acq, const ReplayRun& run,
                   double load_s) {
@@ -314,7 +314,7 @@ void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
     std::printf(", channel %s", summary.channel.c_str());
   }
   const std::string target = sink != nullptr ? o.out : "LCM " + cfg.lcm.url;
-  std::printf(", run %s) -> %s (prefix '%s')\n", msg::run_id_text(summary.run_id).c_str(),
+  std::printf(", run %s) -> %s (prefix '%s')\n", messages::run_id_text(summary.run_id).c_str(),
               target.c_str(), prefix.c_str());
   std::printf("  config %s, calibration %s\n", o.config.c_str(), cfg.calibration_path.c_str());
   // Cycles per second of wall time, and per second of this thread's CPU
@@ -329,6 +329,9 @@ void print_report(const ReplayOptions& o, const config::ServiceConfig& cfg,
                 cpu_rate);
   }
   std::printf(" (loading %.3f s)\n", load_s);
+  // At --speed max the loop waits for the file reader whenever the ring is empty.
+  std::printf("  read-ahead ring of %zu samples, found empty %lld times\n",
+              replay.buffer_capacity(), ll(replay.buffer_waits()));
   if (sink == nullptr) {
     std::printf("  %lld messages published, %lld not (ring full or LCM refused)\n",
                 ll(acq.publisher().published()), ll(acq.publisher().failures()));
@@ -404,20 +407,20 @@ bool report_issues(const drivers::ReplaySource& replay, const std::string& input
 // message with a run id names the publisher ("" when none).
 std::string publisher_heard(const std::string& url, const std::string& prefix,
                             double status_rate_hz) {
-  msg::Subscriber sub(url);
+  messages::Subscriber sub(url);
   std::string heard;
   const auto note = [&heard](std::int64_t run_id, const std::string& what) {
-    if (heard.empty() && run_id != 0) heard = "run id " + msg::run_id_text(run_id) + what;
+    if (heard.empty() && run_id != 0) heard = "run id " + messages::run_id_text(run_id) + what;
   };
-  sub.subscribe(msg::channel_name(prefix, msg::Kind::kStatus), msg::Kind::kStatus,
-                [&note](const msg::Received& r) {
+  sub.subscribe(messages::channel_name(prefix, messages::Kind::kStatus), messages::Kind::kStatus,
+                [&note](const messages::Received& r) {
                   const auto& s = std::get<status_t>(r.msg);
-                  note(s.run_id, " (rig " + msg::printable(s.rig) + ", source " +
-                                     msg::printable(s.source) + ")");
+                  note(s.run_id, " (rig " + messages::printable(s.rig) + ", source " +
+                                     messages::printable(s.source) + ")");
                 });
   sub.subscribe(
-      msg::channel_name(prefix, msg::Kind::kJointState), msg::Kind::kJointState,
-      [&note](const msg::Received& r) { note(std::get<joint_state_t>(r.msg).run_id, ""); });
+      messages::channel_name(prefix, messages::Kind::kJointState), messages::Kind::kJointState,
+      [&note](const messages::Received& r) { note(std::get<joint_state_t>(r.msg).run_id, ""); });
   const double window_ms = std::max(250.0, status_rate_hz > 0.0 ? 2000.0 / status_rate_hz : 250.0);
   const std::int64_t end = mono_now_ns() + static_cast<std::int64_t>(window_ms * 1e6);
   for (std::int64_t now = mono_now_ns(); now < end && heard.empty(); now = mono_now_ns()) {
@@ -468,10 +471,10 @@ int run_replay(const ReplayOptions& o, bool speed_given) {
   }
   const std::string format = check_recording(o.input, o.format);
 
-  config::ServiceConfig cfg = config::load_service_config(o.config);
+  settings::ServiceConfig cfg = settings::load_service_config(o.config);
   if (!o.url.empty()) cfg.lcm.url = o.url;
   if (!o.calibration.empty()) {
-    cfg.calibration = config::load_calibration_file(o.calibration);
+    cfg.calibration = settings::load_calibration_file(o.calibration);
     cfg.calibration_path = o.calibration;
   }
   drivers::ReplaySettings replay_settings;
@@ -480,7 +483,7 @@ int run_replay(const ReplayOptions& o, bool speed_given) {
   if (!o.channel.empty()) replay_settings.channel = o.channel;
   replay_settings.speed = speed;
   auto source =
-      std::make_unique<drivers::ReplaySource>(replay_settings, config::make_source_context(cfg));
+      std::make_unique<drivers::ReplaySource>(replay_settings, settings::make_source_context(cfg));
   drivers::ReplaySource* replay = source.get();
   const std::int64_t load_start = mono_now_ns();
   try {

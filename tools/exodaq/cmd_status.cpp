@@ -10,11 +10,11 @@
 #include "clock_text.hpp"
 #include "command.hpp"
 #include "exodaq/common/clock_now.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/subscriber.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "json_out.hpp"
 #include "live_rig.hpp"
 
@@ -43,13 +43,13 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
                   const StatusOptions& o) {
   auto ll = [](int64_t v) { return static_cast<long long>(v); };
   std::printf("%s  rig '%s'  source %s  run %s\n", channel.c_str(), s.rig.c_str(), s.source.c_str(),
-              msg::run_id_text(s.run_id).c_str());
-  std::printf("state    %s  \"%s\"\n", std::string(msg::state_name(s.state)).c_str(),
+              messages::run_id_text(s.run_id).c_str());
+  std::printf("state    %s  \"%s\"\n", std::string(messages::state_name(s.state)).c_str(),
               s.message.c_str());
   if (s.foreign_run_id != 0) {
     std::printf(
         "FOREIGN  another run %s publishes on these channels: samples flagged FOREIGN_RUN\n",
-        msg::run_id_text(s.foreign_run_id).c_str());
+        messages::run_id_text(s.foreign_run_id).c_str());
   }
   std::printf("time     %s  (received %.3f s later)  seq %lld  cycles %lld\n",
               utc_time(s.utime).c_str(), static_cast<double>(recv_utime - s.utime) * 1e-6,
@@ -64,7 +64,7 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
   std::printf("         %-9s %10.1f %10.1f %10.1f\n", "work", s.work_p50_us, s.work_p99_us,
               s.work_max_us);
   std::printf("source   bus %s  board errors 0x%x  frames %lld  bad %lld  missing %lld\n",
-              std::string(msg::bus_state_name(s.bus_state)).c_str(),
+              std::string(messages::bus_state_name(s.bus_state)).c_str(),
               static_cast<unsigned>(s.board_errors), ll(s.frames), ll(s.bad_frames),
               ll(s.missing_samples));
   std::printf(
@@ -90,28 +90,28 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
               "range", "flags (window)");
   for (int i = 0; i < 6; ++i) {
     std::printf("%-20s %-9s %8lld %8lld %8lld %8lld  %s\n", s.joint_name[i].c_str(),
-                std::string(msg::homing_name(s.homing[i])).c_str(), ll(s.glitches[i]),
+                std::string(messages::homing_name(s.homing[i])).c_str(), ll(s.glitches[i]),
                 ll(s.lost_count_events[i]), ll(s.stale_events[i]), ll(s.out_of_range_events[i]),
-                msg::joint_flag_names(s.joint_flags[i]).c_str());
+                messages::joint_flag_names(s.joint_flags[i]).c_str());
   }
 }
 
 // The JSON value of a status column whose number stands for something (a
 // state, a name, a flag set, an unknown), or nothing: the number as it is.
 std::optional<std::string> named_json_value(const status_t& s, const std::string& column,
-                                            const msg::csv::JointNames& joints) {
+                                            const messages::csv::JointNames& joints) {
   const auto name = [](std::string_view n) { return json_string(std::string(n)); };
-  if (column == "state") return name(msg::state_name(s.state));
-  if (column == "bus_state") return name(msg::bus_state_name(s.bus_state));
+  if (column == "state") return name(messages::state_name(s.state));
+  if (column == "bus_state") return name(messages::bus_state_name(s.bus_state));
   if (column == "clock_synchronised") return json_bool(s.clock_synchronised != 0);
   // The kernel's "no estimate" (clock_text.hpp) is no number.
   if (column == "clock_est_error_us") return clock_error_json(s.clock_est_error_us);
   if (column == "clock_max_error_us") return clock_error_json(s.clock_max_error_us);
   if (column == "foreign_run_id" && s.foreign_run_id == 0) return "null";
   for (std::size_t i = 0; i < joints.size(); ++i) {
-    if (column == joints[i] + "_homing") return name(msg::homing_name(s.homing[i]));
-    if (column == joints[i] + std::string(msg::csv::kFlagsSuffix)) {
-      return json_strings(msg::joint_flag_list(s.joint_flags[i]));
+    if (column == joints[i] + "_homing") return name(messages::homing_name(s.homing[i]));
+    if (column == joints[i] + std::string(messages::csv::kFlagsSuffix)) {
+      return json_strings(messages::joint_flag_list(s.joint_flags[i]));
     }
   }
   return std::nullopt;
@@ -121,17 +121,17 @@ std::optional<std::string> named_json_value(const status_t& s, const std::string
 // its name: numbers as numbers, text as strings, states and flags by name,
 // booleans as booleans, unknown and none as null (docs/messages.md, "JSON").
 void print_json(const std::string& channel, const status_t& s) {
-  const msg::Message m{s};
-  const auto joints = msg::csv::joints_of(m);
-  const auto names = msg::csv::header(msg::Kind::kStatus, joints);
+  const messages::Message m{s};
+  const auto joints = messages::csv::joints_of(m);
+  const auto names = messages::csv::header(messages::Kind::kStatus, joints);
   std::vector<std::string> values;
-  msg::csv::append_values(m, values);
+  messages::csv::append_values(m, values);
   std::string out = "{\n  \"channel\": " + json_string(channel);
   for (std::size_t i = 0; i < names.size(); ++i) {
     std::string value;
     if (auto named = named_json_value(s, names[i], joints)) {
       value = std::move(*named);
-    } else if (msg::csv::is_text_column(msg::Kind::kStatus, names[i])) {
+    } else if (messages::csv::is_text_column(messages::Kind::kStatus, names[i])) {
       value = json_string(values[i]);
     } else {
       value = json_value(values[i]);
@@ -146,14 +146,14 @@ constexpr int64_t kMixWatchNs = 250'000'000;
 
 int run_status(StatusOptions opt) {
   resolve_live_rig(opt.rig);
-  const std::string channel = msg::channel_name(opt.rig.prefix, msg::Kind::kStatus);
-  msg::Subscriber subscriber(opt.rig.url);
-  std::optional<msg::Received> got;
-  subscriber.subscribe(channel, msg::Kind::kStatus, [&](const msg::Received& r) {
+  const std::string channel = messages::channel_name(opt.rig.prefix, messages::Kind::kStatus);
+  messages::Subscriber subscriber(opt.rig.url);
+  std::optional<messages::Received> got;
+  subscriber.subscribe(channel, messages::Kind::kStatus, [&](const messages::Received& r) {
     if (!got) got = r;
   });
   subscriber.on_mixed_runs(
-      [](const msg::RunMix& mix) { print_error("WARNING: " + msg::describe(mix)); });
+      [](const messages::RunMix& mix) { print_error("WARNING: " + messages::describe(mix)); });
   int64_t end = mono_now_ns() + static_cast<int64_t>(opt.timeout * 1e9);
   bool listened_on = false;
   for (;;) {
@@ -172,7 +172,7 @@ int run_status(StatusOptions opt) {
   }
   if (!got) {
     print_error("no " + channel + " message on " + opt.rig.url + " within " +
-                msg::csv::number(opt.timeout) +
+                messages::csv::number(opt.timeout) +
                 " s (is exodaqd running, with this prefix and URL?)");
     return kExitFailure;
   }

@@ -18,12 +18,12 @@
 
 #include "command.hpp"
 #include "exodaq/common/clock_now.hpp"
-#include "exodaq/config/calibration_file.hpp"
-#include "exodaq/config/model_file.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/flag_names.hpp"
 #include "exodaq/messages/subscriber.hpp"
+#include "exodaq/settings/calibration_file.hpp"
+#include "exodaq/settings/model_file.hpp"
+#include "exodaq/settings/service_config.hpp"
 #include "view_assets.hpp"
 #include "view_http.hpp"
 #include "view_scene.hpp"
@@ -59,7 +59,7 @@ std::string default_config_path() {
   return "/etc/exodaq/exodaqd.yaml";
 }
 
-void fill_joints(view::ViewModel& m, const kin::Chain& chain) {
+void fill_joints(view::ViewModel& m, const kinematics::Chain& chain) {
   for (const auto& j : chain.joints()) {
     m.joint_names.push_back(j.name);
     m.joint_limits.push_back({j.limits.lower, j.limits.upper});
@@ -67,33 +67,33 @@ void fill_joints(view::ViewModel& m, const kin::Chain& chain) {
 }
 
 // The model (and LCM settings) from a service config or a model file. Throws
-// config::ConfigError / std::exception with the reason.
+// exodaq::ConfigError / std::exception with the reason.
 view::ViewModel load_view_model(const ViewOptions& o, view::SceneOptions& scene) {
   view::ViewModel m;
   if (!o.model.empty()) {
-    config::KinematicModel km = config::load_model_file(o.model);
+    settings::KinematicModel km = settings::load_model_file(o.model);
     m.name = km.name;
     m.model_file = km.file.empty() ? o.model : km.file;
     m.chain = km.chain;
     m.elbow_frame = km.rig.elbow_frame;
     fill_joints(m, km.chain);
-    scene.url = msg::kDefaultUrl;
+    scene.url = messages::kDefaultUrl;
     return m;
   }
   const std::string path = o.config.empty() ? default_config_path() : o.config;
-  config::ServiceConfig cfg = config::load_service_config(path);
+  settings::ServiceConfig cfg = settings::load_service_config(path);
   m.name = cfg.model.name;
   m.model_file = cfg.model_path;
   m.config_file = path;
   m.rig = cfg.rig;
   // The chain the daemon evaluates: the model with the calibration applied.
-  m.chain = config::apply_calibration(cfg.model.chain, cfg.calibration);
+  m.chain = settings::apply_calibration(cfg.model.chain, cfg.calibration);
   m.calibrated = true;
   m.elbow_frame = cfg.model.rig.elbow_frame;
   fill_joints(m, cfg.model.chain);
   scene.url = cfg.lcm.url;
   scene.prefix = cfg.lcm.prefix;
-  scene.sync_required = cfg.clock.require_sync != config::RequireSync::kIgnore;
+  scene.sync_required = cfg.clock.require_sync != settings::RequireSync::kIgnore;
   return m;
 }
 
@@ -114,19 +114,20 @@ void register_pages(view::HttpServer& server, view::ViewScene& scene) {
 }
 
 int serve(const ViewOptions& o, view::ViewScene& scene, const view::SceneOptions& so) {
-  msg::Subscriber subscriber(so.url);
+  messages::Subscriber subscriber(so.url);
   const int64_t t0 = mono_now_ns();
-  subscriber.subscribe(msg::channel_name(so.prefix, msg::Kind::kJointState), msg::Kind::kJointState,
-                       [&](const msg::Received& r) {
+  subscriber.subscribe(messages::channel_name(so.prefix, messages::Kind::kJointState),
+                       messages::Kind::kJointState, [&](const messages::Received& r) {
                          scene.on_joint_state(std::get<joint_state_t>(r.msg), mono_now_ns());
                        });
-  subscriber.subscribe(msg::channel_name(so.prefix, msg::Kind::kPalmPose), msg::Kind::kPalmPose,
-                       [&](const msg::Received& r) {
+  subscriber.subscribe(messages::channel_name(so.prefix, messages::Kind::kPalmPose),
+                       messages::Kind::kPalmPose, [&](const messages::Received& r) {
                          scene.on_palm_pose(std::get<palm_pose_t>(r.msg), mono_now_ns());
                        });
-  subscriber.subscribe(
-      msg::channel_name(so.prefix, msg::Kind::kStatus), msg::Kind::kStatus,
-      [&](const msg::Received& r) { scene.on_status(std::get<status_t>(r.msg), mono_now_ns()); });
+  subscriber.subscribe(messages::channel_name(so.prefix, messages::Kind::kStatus),
+                       messages::Kind::kStatus, [&](const messages::Received& r) {
+                         scene.on_status(std::get<status_t>(r.msg), mono_now_ns());
+                       });
 
   view::HttpOptions ho;
   ho.bind = o.bind;

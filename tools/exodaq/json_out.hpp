@@ -35,14 +35,14 @@ inline std::string json_string(const std::string& s) {
 
 inline std::string json_number(double v) {
   if (!std::isfinite(v)) return "null";
-  return msg::csv::number(v);
+  return messages::csv::number(v);
 }
 
 inline constexpr double kJsonNoise = 1e-12;
 
 inline std::string json_measure(double v) {
   if (!std::isfinite(v)) return "null";
-  return std::abs(v) < kJsonNoise ? "0" : msg::csv::number(v);
+  return std::abs(v) < kJsonNoise ? "0" : messages::csv::number(v);
 }
 
 // A number already written as text (the CSV schema's values): as it is, or

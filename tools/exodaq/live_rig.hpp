@@ -10,8 +10,8 @@
 #include <string>
 
 #include "command.hpp"
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/messages/subscriber.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 namespace exodaq::tools {
 
@@ -19,9 +19,9 @@ struct LiveRig {
   std::string config;
   std::string prefix;
   bool prefix_given = false;
-  std::string url = msg::kDefaultUrl;
+  std::string url = messages::kDefaultUrl;
   bool url_given = false;
-  std::optional<config::RequireSync> clock_policy;  // from --config
+  std::optional<settings::RequireSync> clock_policy;  // from --config
 };
 
 // Adds -c/--config, -p/--prefix and -u/--url to `app`, storing into `rig`
@@ -39,7 +39,7 @@ inline void add_live_rig_options(CLI::App& app, LiveRig& rig) {
 // Fills in from --config what the command line left out.
 inline void resolve_live_rig(LiveRig& rig) {
   if (rig.config.empty()) return;
-  const config::ServiceConfig cfg = config::load_service_config(rig.config);
+  const settings::ServiceConfig cfg = settings::load_service_config(rig.config);
   if (!rig.url_given) rig.url = cfg.lcm.url;
   if (!rig.prefix_given) rig.prefix = cfg.lcm.prefix;
   rig.clock_policy = cfg.clock.require_sync;

@@ -3,7 +3,7 @@
 // publisher's seq and mono_ns (not from receive times, which carry network
 // jitter). Used by `exodaq echo` and `exodaq view`. With the run's statuses
 // (add_status), seq numbers the daemon itself never published (its skipped
-// deadlines) are not counted as missing here (msg::RunAccount's rule).
+// deadlines) are not counted as missing here (messages::RunAccount's rule).
 #include <algorithm>
 #include <cstdint>
 #include <deque>
@@ -15,7 +15,7 @@ namespace exodaq::tools {
 
 class RateMeter {
  public:
-  void add(const msg::Stamp& s, int64_t local_mono_ns) {
+  void add(const messages::Stamp& s, int64_t local_mono_ns) {
     if (!window_.empty() && (s.run_id != window_.back().run_id || s.seq <= window_.back().seq)) {
       window_.clear();  // daemon restarted or sequence went back
     }
@@ -34,7 +34,7 @@ class RateMeter {
     return static_cast<double>(b.seq - a.seq) * 1e9 / static_cast<double>(b.mono_ns - a.mono_ns);
   }
   // A status_t of the stream's run: its seq and the seq numbers the daemon
-  // never published since its start (msg::daemon_counts).
+  // never published since its start (messages::daemon_counts).
   void add_status(int64_t run_id, int64_t seq, int64_t unpublished) {
     if (!statuses_.empty() && (statuses_.back().run_id != run_id || seq < statuses_.back().seq)) {
       statuses_.clear();

@@ -68,7 +68,7 @@ ViewScene::ViewScene(ViewModel model, SceneOptions options)
   }
   // The page's scale: the length of the chain of frame origins (constant for
   // DH chains, whose every origin lies on the next joint's axis).
-  const kin::JointVector q = kin::JointVector::Zero(n);
+  const kinematics::JointVector q = kinematics::JointVector::Zero(n);
   for (int i = 1; i <= n + 1; ++i) {
     reach_m_ +=
         (model_.chain.frame(q, i).translation() - model_.chain.frame(q, i - 1).translation())
@@ -102,7 +102,7 @@ void ViewScene::on_joint_state(const joint_state_t& m, int64_t now_ns) {
   ++joint_messages_;
   ++since_frame_;
   joint_dirty_ = true;
-  meter_.add(msg::Stamp{m.utime, m.mono_ns, m.seq, m.run_id}, now_ns);
+  meter_.add(messages::Stamp{m.utime, m.mono_ns, m.seq, m.run_id}, now_ns);
 }
 
 void ViewScene::on_palm_pose(const palm_pose_t& m, int64_t /*now_ns*/) {
@@ -138,7 +138,8 @@ StreamState ViewScene::stream_state(int64_t now_ns) const {
 
 std::string ViewScene::stream_json(int64_t now_ns) const {
   const StreamState s = stream_state(now_ns);
-  const std::string joint_channel = msg::channel_name(options_.prefix, msg::Kind::kJointState);
+  const std::string joint_channel =
+      messages::channel_name(options_.prefix, messages::Kind::kJointState);
   std::string reason;
   char buf[160];
   switch (s) {
@@ -163,7 +164,7 @@ std::string ViewScene::stream_json(int64_t now_ns) const {
   j.key("status_age_s");
   status_ ? j.value(seconds(now_ns - status_local_ns_)) : j.null();
   j.key("run_id");
-  joints_ ? j.value(msg::run_id_text(joints_->run_id)) : j.null();
+  joints_ ? j.value(messages::run_id_text(joints_->run_id)) : j.null();
   j.key("rate_hz");
   const auto rate = meter_.rate_hz();
   rate ? j.value(*rate) : j.null();
@@ -178,7 +179,7 @@ std::string ViewScene::stream_json(int64_t now_ns) const {
 std::string ViewScene::frame_json() {
   const Joints& js = *joints_;
   const int n = model_.chain.joint_count();
-  kin::JointVector q(n);
+  kinematics::JointVector q(n);
   for (int i = 0; i < n; ++i) q[i] = js.q[static_cast<std::size_t>(i)];
   frames_.resize(static_cast<std::size_t>(n) + 2);
   for (int i = 0; i <= n + 1; ++i) {
@@ -195,7 +196,7 @@ std::string ViewScene::frame_json() {
   }
 
   JsonWriter j;
-  j.begin_object().field("seq", js.seq).field("run_id", msg::run_id_text(js.run_id));
+  j.begin_object().field("seq", js.seq).field("run_id", messages::run_id_text(js.run_id));
   j.field("utime", js.utime).field("t", seconds(js.mono_ns));
   write_joint_arrays(j, js);
   j.key("frames").begin_array();
@@ -233,7 +234,7 @@ void ViewScene::write_joint_arrays(JsonWriter& j, const Joints& js) const {
   j.key("flags");
   write_array(j, js.flags);
   j.key("flag_names").begin_array();
-  for (const int32_t f : js.flags) j.value(msg::joint_flag_names(f));
+  for (const int32_t f : js.flags) j.value(messages::joint_flag_names(f));
   j.end_array();
   j.key("class").begin_array();
   for (int i = 0; i < kViewJoints; ++i) {
@@ -242,7 +243,7 @@ void ViewScene::write_joint_arrays(JsonWriter& j, const Joints& js) const {
   }
   j.end_array();
   j.field("sample_flags", js.sample_flags)
-      .field("sample_flag_names", msg::sample_flag_names(js.sample_flags));
+      .field("sample_flag_names", messages::sample_flag_names(js.sample_flags));
 }
 
 std::optional<double> ViewScene::write_published(JsonWriter& j, const Joints& js,
@@ -257,7 +258,7 @@ std::optional<double> ViewScene::write_published(JsonWriter& j, const Joints& js
   const Eigen::Vector3d pe(p.elbow[0], p.elbow[1], p.elbow[2]);
   j.begin_object().field("seq", p.seq).field("valid", p.valid);
   j.field("invalid_reason", p.invalid_reason)
-      .field("invalid_names", msg::invalid_reason_names(p.invalid_reason));
+      .field("invalid_names", messages::invalid_reason_names(p.invalid_reason));
   j.key("position");
   write_vec(j, pp);
   j.key("elbow");
@@ -273,10 +274,10 @@ std::string ViewScene::status_json(const status_t& s) const {
   j.begin_object()
       .field("seq", s.seq)
       .field("utime", s.utime)
-      .field("run_id", msg::run_id_text(s.run_id));
-  j.field("rig", s.rig).field("state", msg::state_name(s.state));
+      .field("run_id", messages::run_id_text(s.run_id));
+  j.field("rig", s.rig).field("state", messages::state_name(s.state));
   j.field("message", s.message).field("source", s.source);
-  j.field("bus", msg::bus_state_name(s.bus_state)).field("board_errors", s.board_errors);
+  j.field("bus", messages::bus_state_name(s.bus_state)).field("board_errors", s.board_errors);
   j.key("clock").begin_object();
   j.field("synchronised", s.clock_synchronised != 0).field("required", options_.sync_required);
   // The kernel's 16 s bound means "no estimate" (clock_text.hpp): null.
@@ -300,10 +301,10 @@ std::string ViewScene::status_json(const status_t& s) const {
   j.field("bus_errors", s.bus_errors);
   j.end_object();
   j.key("homing").begin_array();
-  for (const int8_t h : s.homing) j.value(msg::homing_name(h));
+  for (const int8_t h : s.homing) j.value(messages::homing_name(h));
   j.end_array();
   j.key("joint_flags").begin_array();
-  for (const int32_t f : s.joint_flags) j.value(msg::joint_flag_names(f));
+  for (const int32_t f : s.joint_flags) j.value(messages::joint_flag_names(f));
   j.end_array();
   j.end_object();
   return j.str();

@@ -35,7 +35,7 @@ struct ViewModel {
   std::string config_file;  // the service config it came with (empty: --model)
   std::string rig;          // the config's rig name (empty: --model)
   bool calibrated = false;  // the chain has the config's calibration applied
-  kin::Chain chain;         // must have kViewJoints joints
+  kinematics::Chain chain;  // must have kViewJoints joints
   int elbow_frame = 4;
   std::vector<std::string> joint_names;             // the model's, until messages name them
   std::vector<std::array<double, 2>> joint_limits;  // rad

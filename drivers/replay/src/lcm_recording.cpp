@@ -74,13 +74,13 @@ class LcmLoader {
 
  private:
   void choose_channels();
-  void on_joint_state(const msg::LogEvent& ev);
-  void on_raw(const msg::LogEvent& ev);
+  void on_joint_state(const messages::LogEvent& ev);
+  void on_raw(const messages::LogEvent& ev);
   bool accept_run(std::int64_t event_number);
   void add_loop_info(EncoderSample& s);
   void add_partial_channels(EncoderSample& s, bool have_info, const LoopInfo& info) const;
   void count(const EncoderSample& s);
-  void on_homing(const msg::LogEvent& ev);
+  void on_homing(const messages::LogEvent& ev);
   void follow_counts(const EncoderSample& s);
   void take_resume();
 
@@ -127,16 +127,16 @@ void LcmLoader::choose_channels() {
     out_.joint_channel = joint_channel_ = counted_->joint_channel;
     return;
   }
-  const auto channels = msg::scan_channels(settings_.path);
+  const auto channels = messages::scan_channels(settings_.path);
   raw_channel_ = find_raw_channel(settings_.path, channels, settings_.channel);
   summary.channel = raw_channel_;
-  const auto parts = msg::split_channel(raw_channel_);
-  const bool standard_name = parts && parts->kind == msg::Kind::kEncoderRaw;
+  const auto parts = messages::split_channel(raw_channel_);
+  const bool standard_name = parts && parts->kind == messages::Kind::kEncoderRaw;
   summary.prefix = standard_name ? parts->prefix : std::string();
-  const std::string joint = msg::channel_name(summary.prefix, msg::Kind::kJointState);
+  const std::string joint = messages::channel_name(summary.prefix, messages::Kind::kJointState);
   if (standard_name && channels.count(joint) != 0) joint_channel_ = joint;
   out_.joint_channel = joint_channel_;
-  const std::string homing = msg::channel_name(summary.prefix, msg::Kind::kHoming);
+  const std::string homing = messages::channel_name(summary.prefix, messages::Kind::kHoming);
   if (standard_name && channels.count(homing) != 0) homing_channel_ = homing;
   out_.homing_channel = homing_channel_;
 }
@@ -145,8 +145,8 @@ void LcmLoader::load() {
   const std::string& path = settings_.path;
   choose_channels();
   ReplayLoadSummary& summary = out_.summary;
-  msg::LogReader log(path);
-  msg::LogEvent ev;
+  messages::LogReader log(path);
+  messages::LogEvent ev;
   while (!stopped_ && log.next(ev)) {
     if (ev.follows_damage) {
       damage_pending_ = log.damage().size();
@@ -163,7 +163,7 @@ void LcmLoader::load() {
   }
   const auto& damage = log.damage();
   for (std::size_t i = 0; i < damage.size(); ++i) {
-    const msg::LogDamage& d = damage[i];
+    const messages::LogDamage& d = damage[i];
     std::string what = "log damaged after event " + std::to_string(d.after_event) + ": bytes " +
                        std::to_string(d.from) + ".." + std::to_string(d.to) + " of '" + path +
                        "': " + d.what;
@@ -197,8 +197,8 @@ void LcmLoader::load() {
   }
 }
 
-void LcmLoader::on_joint_state(const msg::LogEvent& ev) {
-  if (!msg::decode_into(joint_, ev.data, ev.size)) return;
+void LcmLoader::on_joint_state(const messages::LogEvent& ev) {
+  if (!messages::decode_into(joint_, ev.data, ev.size)) return;
   LoopInfo& slot = recent_[static_cast<std::size_t>(joint_.seq) % kRing];
   slot.seq = joint_.seq;
   slot.run_id = joint_.run_id;
@@ -211,8 +211,8 @@ void LcmLoader::on_joint_state(const msg::LogEvent& ev) {
   }
 }
 
-void LcmLoader::on_raw(const msg::LogEvent& ev) {
-  if (!msg::decode_into(raw_, ev.data, ev.size)) {
+void LcmLoader::on_raw(const messages::LogEvent& ev) {
+  if (!messages::decode_into(raw_, ev.data, ev.size)) {
     ++out_.stats.bad_frames;
     out_.note(ev.number, "event on " + raw_channel_ + " does not decode as exodaq.encoder_raw_t");
     return;
@@ -226,7 +226,8 @@ void LcmLoader::on_raw(const msg::LogEvent& ev) {
               "event on " + raw_channel_ + " has an impossible utime or seq (damaged log)");
     return;
   }
-  if (msg::is_startup_message({raw_.utime, raw_.mono_ns, raw_.seq, raw_.run_id}) && !raw_.present) {
+  if (messages::is_startup_message({raw_.utime, raw_.mono_ns, raw_.seq, raw_.run_id}) &&
+      !raw_.present) {
     ++out_.summary.skipped_warmup;
     return;
   }
@@ -239,7 +240,7 @@ void LcmLoader::on_raw(const msg::LogEvent& ev) {
   }
   Entry e;
   e.seq = raw_.seq;
-  msg::from_encoder_raw(raw_, e.sample);
+  messages::from_encoder_raw(raw_, e.sample);
   e.sample.flags |= sample_flag::kReplay;
   add_loop_info(e.sample);
   count(e.sample);
@@ -315,12 +316,12 @@ void LcmLoader::add_partial_channels(EncoderSample& s, bool have_info, const Loo
 
 // First pass: the homing records of the run. The first one whose raw sample
 // is in the log too says where the live joints stood (take_resume).
-void LcmLoader::on_homing(const msg::LogEvent& ev) {
-  if (!msg::decode_into(homing_, ev.data, ev.size)) {
+void LcmLoader::on_homing(const messages::LogEvent& ev) {
+  if (!messages::decode_into(homing_, ev.data, ev.size)) {
     out_.note(ev.number, "event on " + homing_channel_ + " does not decode as exodaq.homing_t");
     return;
   }
-  if (msg::is_startup_message({homing_.utime, homing_.mono_ns, homing_.seq, homing_.run_id}))
+  if (messages::is_startup_message({homing_.utime, homing_.mono_ns, homing_.seq, homing_.run_id}))
     return;
   if (have_run_ && homing_.run_id != out_.summary.run_id) return;
   if (have_run_) ++out_.summary.homing_records;
@@ -382,7 +383,7 @@ void read_lcm(const ReplaySettings& settings, const SourceContext& context, cons
               Pass& out, EntrySink& sink) {
   try {
     LcmLoader(settings, context, counted, out, sink).load();
-  } catch (const msg::LogError& e) {
+  } catch (const messages::LogError& e) {
     throw std::runtime_error(std::string("replay: ") + e.what());
   }
 }

@@ -2,14 +2,14 @@
 
 #include <sstream>
 
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/drivers/replay_source.hpp"
 
 namespace exodaq::drivers {
 
 namespace {
 
-double parse_speed(config::MapReader& s) {
+double parse_speed(exodaq::MapReader& s) {
   const YAML::Node sp = s.child("speed");
   if (sp.IsScalar() && sp.Scalar() == "max") return 0.0;
   const double speed = s.to_number(sp, "speed");
@@ -17,7 +17,7 @@ double parse_speed(config::MapReader& s) {
   return speed;
 }
 
-std::shared_ptr<const BackendSettings> parse_replay(config::MapReader* s, config::MapReader& src,
+std::shared_ptr<const BackendSettings> parse_replay(exodaq::MapReader* s, exodaq::MapReader& src,
                                                     bool selected) {
   auto out = std::make_shared<ReplaySettings>();
   if (s == nullptr) {

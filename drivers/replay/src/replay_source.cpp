@@ -134,7 +134,7 @@ ReplaySource::ReplaySource(const ReplaySettings& settings, const SourceContext& 
   }
   if (settings_.path.empty()) throw std::runtime_error("replay: no input file given");
   if (settings_.channel.empty()) {
-    settings_.channel = std::string(msg::base_channel(msg::Kind::kEncoderRaw));
+    settings_.channel = std::string(messages::base_channel(messages::Kind::kEncoderRaw));
   }
 }
 
@@ -146,7 +146,7 @@ ReplayFormat ReplaySource::detect_format(const std::string& path) {
   if (in.gcount() == 4) {
     const std::uint32_t m = (std::uint32_t{magic[0]} << 24) | (std::uint32_t{magic[1]} << 16) |
                             (std::uint32_t{magic[2]} << 8) | std::uint32_t{magic[3]};
-    if (m == msg::kLcmLogMagic) return ReplayFormat::kLcm;
+    if (m == messages::kLcmLogMagic) return ReplayFormat::kLcm;
   }
   in.clear();
   in.seekg(0);

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/drivers/sim_source.hpp"
 #include "exodaq/drivers/sim_task.hpp"
 #include "exodaq/kinematics/chain.hpp"
@@ -14,7 +14,7 @@ namespace exodaq::drivers {
 
 namespace {
 
-std::shared_ptr<const BackendSettings> parse_sim(config::MapReader* s, config::MapReader& /*src*/,
+std::shared_ptr<const BackendSettings> parse_sim(exodaq::MapReader* s, exodaq::MapReader& /*src*/,
                                                  bool /*selected*/) {
   auto out = std::make_shared<SimSourceSettings>();
   if (s == nullptr) return out;
@@ -57,7 +57,7 @@ std::shared_ptr<const BackendSettings> parse_sim(config::MapReader* s, config::M
   if (auto faults = s->optional_child("faults")) {
     if (!faults->IsSequence()) s->fail(*faults, "source.sim.faults must be a list");
     for (std::size_t i = 0; i < faults->size(); ++i) {
-      config::MapReader f(s->file(), (*faults)[i], "source.sim.faults[" + std::to_string(i) + "]");
+      exodaq::MapReader f(s->file(), (*faults)[i], "source.sim.faults[" + std::to_string(i) + "]");
       out->faults.push_back(parse_sim_fault(f));
     }
   }
@@ -75,7 +75,7 @@ std::unique_ptr<EncoderSource> make_sim(const BackendSettings& settings, const S
 namespace {
 
 // A parameter the fault's kind does not take is an error, not ignored.
-bool takes(config::MapReader& f, const sim::SimFaultName& kind, std::uint32_t param,
+bool takes(exodaq::MapReader& f, const sim::SimFaultName& kind, std::uint32_t param,
            const char* key) {
   if ((kind.params & param) != 0) return true;
   if (f.has(key)) {
@@ -87,7 +87,7 @@ bool takes(config::MapReader& f, const sim::SimFaultName& kind, std::uint32_t pa
 
 }  // namespace
 
-sim::SimFault parse_sim_fault(config::MapReader& f) {
+sim::SimFault parse_sim_fault(exodaq::MapReader& f) {
   std::vector<std::string> names;
   for (const auto& n : sim::sim_fault_names()) names.emplace_back(n.name);
   const sim::SimFaultName& kind = *sim::find_sim_fault(f.choice("kind", names));

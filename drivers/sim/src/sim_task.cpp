@@ -5,15 +5,15 @@
 #include <map>
 #include <numbers>
 
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/kinematics/ik.hpp"
 
 namespace exodaq::drivers::sim {
 namespace {
 
-using config::ConfigError;
-using config::kDegToRad;
-using config::MapReader;
+using exodaq::ConfigError;
+using exodaq::kDegToRad;
+using exodaq::MapReader;
 
 std::size_t u(int i) noexcept {
   return static_cast<std::size_t>(i);
@@ -47,7 +47,7 @@ std::map<std::string, Eigen::Matrix3d> read_hands(MapReader& top) {
 
 SimTaskStep read_step(MapReader& s, const std::map<std::string, Eigen::Matrix3d>& hands) {
   SimTaskStep step;
-  step.line = config::line_of(s.node());
+  step.line = exodaq::line_of(s.node());
   step.name = s.string("name");
   step.position_m = millimetres(s, "position_mm");
   if (s.has("hand") == s.has("rpy_deg")) {
@@ -79,7 +79,7 @@ SimTaskRandom read_random(MapReader& r, const std::vector<SimTaskStep>& loop) {
     out.steps.push_back(static_cast<int>(it - loop.begin()));
   }
   MapReader box = r.map("box_mm");
-  out.line = config::line_of(box.node());
+  out.line = exodaq::line_of(box.node());
   out.box_min_m = millimetres(box, "min");
   out.box_max_m = millimetres(box, "max");
   box.finish();
@@ -98,7 +98,7 @@ SimTaskRandom read_random(MapReader& r, const std::vector<SimTaskStep>& loop) {
 SimTaskFile load_sim_task(const std::string& path) {
   SimTaskFile f;
   f.file = path;
-  MapReader top(path, config::load_yaml_file(path), "task");
+  MapReader top(path, exodaq::load_yaml_file(path), "task");
   top.choice("format", {"exodaq-sim-task-1"});
   f.speed_fraction = top.number_or("speed_fraction", f.speed_fraction);
   if (!(f.speed_fraction > 0.0 && f.speed_fraction <= 1.0)) {
@@ -130,13 +130,13 @@ SimTaskFile load_sim_task(const std::string& path) {
 
 namespace {
 
-kin::JointVector to_joints(const Vec6& v) {
-  kin::JointVector q(kJoints);
+kinematics::JointVector to_joints(const Vec6& v) {
+  kinematics::JointVector q(kJoints);
   for (int j = 0; j < kJoints; ++j) q[j] = v[u(j)];
   return q;
 }
 
-Vec6 to_vec6(const kin::JointVector& q) {
+Vec6 to_vec6(const kinematics::JointVector& q) {
   Vec6 v{};
   for (int j = 0; j < kJoints; ++j) v[u(j)] = q[j];
   return v;
@@ -153,11 +153,11 @@ struct ArmGeometry {
   double upper_arm = 0.0;
 };
 
-ArmGeometry arm_geometry(const kin::Chain& chain, const kin::RigKinematicsConfig& rig,
+ArmGeometry arm_geometry(const kinematics::Chain& chain, const kinematics::RigKinematicsConfig& rig,
                          const Vec6& home) {
   ArmGeometry g;
   if (chain.joint_count() != kJoints || rig.elbow_frame < 2) return g;
-  auto measure = [&](const kin::JointVector& q, ArmGeometry& m) {
+  auto measure = [&](const kinematics::JointVector& q, ArmGeometry& m) {
     m.shoulder = chain.frame(q, rig.elbow_frame - 1).translation();
     const Eigen::Vector3d elbow = chain.frame(q, rig.elbow_frame).translation();
     m.elbow_in_palm = chain.palm(q).inverse() * elbow;
@@ -165,7 +165,7 @@ ArmGeometry arm_geometry(const kin::Chain& chain, const kin::RigKinematicsConfig
   };
   measure(to_joints(home), g);
   g.spherical = true;
-  kin::JointVector q = to_joints(home);
+  kinematics::JointVector q = to_joints(home);
   for (int j = 0; j < kJoints; ++j) q[j] += 0.1 * (j + 1);  // another posture: same geometry?
   ArmGeometry other;
   measure(q, other);
@@ -178,7 +178,7 @@ ArmGeometry arm_geometry(const kin::Chain& chain, const kin::RigKinematicsConfig
 // Turns the palm about its position as little as possible so that the elbow
 // lies on the upper arm's sphere. Returns the angle turned, or a negative
 // value when no orientation reaches the position.
-double make_reachable(const ArmGeometry& g, kin::Pose& pose) {
+double make_reachable(const ArmGeometry& g, kinematics::Pose& pose) {
   if (!g.spherical) return 0.0;
   const Eigen::Vector3d v = pose.linear() * g.elbow_in_palm;  // palm -> elbow
   const Eigen::Vector3d d = pose.translation() - g.shoulder;
@@ -197,7 +197,7 @@ double make_reachable(const ArmGeometry& g, kin::Pose& pose) {
   return std::acos(std::clamp(v.dot(w) / (vn * vn), -1.0, 1.0));
 }
 
-double distance_sq(const kin::JointVector& a, const Vec6& b) {
+double distance_sq(const kinematics::JointVector& a, const Vec6& b) {
   double s = 0.0;
   for (int j = 0; j < kJoints; ++j) s += (a[j] - b[u(j)]) * (a[j] - b[u(j)]);
   return s;
@@ -205,12 +205,12 @@ double distance_sq(const kin::JointVector& a, const Vec6& b) {
 
 // The posture reaching `pose` for `step`: at its azimuth the solution within
 // the limits nearest `seed`, else the IK's nearest solution. nullopt: none.
-std::optional<Vec6> solve_step(kin::IkSolver& ik, const SimTaskStep& step, const kin::Pose& pose,
-                               const Vec6& seed) {
+std::optional<Vec6> solve_step(kinematics::IkSolver& ik, const SimTaskStep& step,
+                               const kinematics::Pose& pose, const Vec6& seed) {
   if (step.azimuth_rad) {
-    const kin::IkResult& r = ik.solve_fixed(pose, *step.azimuth_rad);
-    const kin::IkSolution* best = nullptr;
-    for (const kin::IkSolution& s : r.solutions) {
+    const kinematics::IkResult& r = ik.solve_fixed(pose, *step.azimuth_rad);
+    const kinematics::IkSolution* best = nullptr;
+    for (const kinematics::IkSolution& s : r.solutions) {
       if (s.within_limits &&
           (best == nullptr || distance_sq(s.q, seed) < distance_sq(best->q, seed)))
         best = &s;
@@ -218,17 +218,17 @@ std::optional<Vec6> solve_step(kin::IkSolver& ik, const SimTaskStep& step, const
     if (best == nullptr) return std::nullopt;
     return to_vec6(best->q);
   }
-  kin::IkSolution s;
+  kinematics::IkSolution s;
   if (!ik.solve_nearest(pose, to_joints(seed), s)) return std::nullopt;
   return to_vec6(s.q);
 }
 
 // Every trip's palm targets in loop order (random steps drawn in the box).
-std::vector<kin::Pose> trip_targets(const SimTaskFile& f, std::uint64_t seed, int trip,
-                                    int attempt) {
-  std::vector<kin::Pose> poses;
+std::vector<kinematics::Pose> trip_targets(const SimTaskFile& f, std::uint64_t seed, int trip,
+                                           int attempt) {
+  std::vector<kinematics::Pose> poses;
   for (const SimTaskStep& s : f.loop) {
-    kin::Pose p = kin::Pose::Identity();
+    kinematics::Pose p = kinematics::Pose::Identity();
     p.linear() = s.rotation;
     p.translation() = s.position_m;
     poses.push_back(p);
@@ -247,8 +247,8 @@ std::vector<kin::Pose> trip_targets(const SimTaskFile& f, std::uint64_t seed, in
 
 // One trip's stops. Returns the index of the step out of reach (the reason
 // in `why`), or -1.
-int plan_trip(const SimTask& task, const ArmGeometry& g, kin::IkSolver& ik,
-              const std::vector<kin::Pose>& targets, Vec6 seed, int trip,
+int plan_trip(const SimTask& task, const ArmGeometry& g, kinematics::IkSolver& ik,
+              const std::vector<kinematics::Pose>& targets, Vec6 seed, int trip,
               std::vector<SimTaskPlan::Stop>& out, std::string& why) {
   const SimTaskFile& f = *task.file;
   for (std::size_t i = 0; i < f.loop.size(); ++i) {
@@ -285,7 +285,7 @@ std::vector<SimTaskPlan::Stop> plan_stops(const SimTask& task, const SimMotionOp
                                           std::uint64_t seed) {
   const SimTaskFile& f = *task.file;
   const ArmGeometry g = arm_geometry(task.chain, task.rig, o.home_rad);
-  kin::IkSolver ik(task.chain, task.rig);
+  kinematics::IkSolver ik(task.chain, task.rig);
   std::vector<SimTaskPlan::Stop> stops;
   const int trips = f.random ? f.random->trips : 1;
   for (int trip = 0; trip < trips; ++trip) {
@@ -313,19 +313,19 @@ std::vector<SimTaskPlan::Stop> plan_stops(const SimTask& task, const SimMotionOp
   return stops;
 }
 
-kin::JointTrajectory plan_move(const SimTask& task, const std::vector<Vec6>& via) {
-  kin::JointBounds bounds;
+kinematics::JointTrajectory plan_move(const SimTask& task, const std::vector<Vec6>& via) {
+  kinematics::JointBounds bounds;
   bounds.max_speed = to_joints(task.max_speed_rad_s) * task.file->speed_fraction;
-  kin::TrajectoryOptions options;
-  options.shape = kin::SegmentShape::kQuintic;
+  kinematics::TrajectoryOptions options;
+  options.shape = kinematics::SegmentShape::kQuintic;
   options.min_segment_duration = task.file->min_move_s;
-  std::vector<kin::JointVector> points;
+  std::vector<kinematics::JointVector> points;
   for (const Vec6& v : via) points.push_back(to_joints(v));
-  return kin::JointTrajectory(points, bounds, options);
+  return kinematics::JointTrajectory(points, bounds, options);
 }
 
 void add_move(SimTaskPlan& plan, std::vector<SimMotion::Segment>& segs, double& t,
-              kin::JointTrajectory move) {
+              kinematics::JointTrajectory move) {
   SimMotion::Segment s;
   s.t0 = t;
   s.duration = move.duration();
@@ -387,7 +387,7 @@ SimTaskPlan plan_sim_task(const SimTask& task, const SimMotionOptions& o, std::u
 }
 
 JointTruth sample_move(const SimTaskPlan& plan, int move, double t) noexcept {
-  kin::TrajectorySample s;
+  kinematics::TrajectorySample s;
   plan.moves[u(move)].sample(t, s);
   JointTruth out;
   for (int j = 0; j < kJoints; ++j) {

@@ -7,9 +7,9 @@
 #include <optional>
 #include <string>
 
-#include "exodaq/config/service_config.hpp"
 #include "exodaq/core/acquisition.hpp"
 #include "exodaq/core/pipeline.hpp"
+#include "exodaq/settings/service_config.hpp"
 
 namespace exodaq::core {
 
@@ -27,14 +27,14 @@ struct AcquisitionOptions {
 
 // Throws what the source factory or the sink throws (unknown backend,
 // missing file, LCM URL refused).
-std::unique_ptr<Acquisition> build_acquisition(const config::ServiceConfig& config,
+std::unique_ptr<Acquisition> build_acquisition(const settings::ServiceConfig& config,
                                                AcquisitionOptions options = {});
 
 // The pipeline's configuration: trackers from encoders + model limits +
 // calibration offsets, the chain with the calibration applied.
-std::unique_ptr<PipelineConfig> make_pipeline_config(const config::ServiceConfig& config);
+std::unique_ptr<PipelineConfig> make_pipeline_config(const settings::ServiceConfig& config);
 
 // The loop's settings (rate, scheduling, status rate, joint names, clock policy).
-AcquisitionConfig make_acquisition_config(const config::ServiceConfig& config);
+AcquisitionConfig make_acquisition_config(const settings::ServiceConfig& config);
 
 }  // namespace exodaq::core

@@ -11,7 +11,7 @@
 #include <mutex>
 #include <thread>
 
-#include "exodaq/config/service_settings.hpp"
+#include "exodaq/settings/service_settings.hpp"
 
 namespace exodaq::core {
 
@@ -39,8 +39,8 @@ class ClockSource {
 std::unique_ptr<ClockSource> make_system_clock();
 
 // The policy is part of the service configuration (settings library).
-using config::ClockPolicy;
-using config::RequireSync;
+using settings::ClockPolicy;
+using settings::RequireSync;
 
 // Latest offset (wall - mono) and health, written by ClockMonitor's thread,
 // read by the loop with relaxed atomics (no lock, no syscall).

@@ -7,8 +7,8 @@
 #include <array>
 #include <cstdint>
 
-#include "exodaq/config/service_settings.hpp"
 #include "exodaq/drivers/encoder_source.hpp"
+#include "exodaq/settings/service_settings.hpp"
 #include "exodaq/wire_constants.hpp"
 
 namespace exodaq::core {
@@ -58,8 +58,8 @@ struct JointTrackerConfig {
   int velocity_window = 21;  // samples in the velocity fit (odd, <= kMaxVelocityWindow)
 };
 
-using config::kJointCount;
-using config::kMaxVelocityWindow;
+using settings::kJointCount;
+using settings::kMaxVelocityWindow;
 
 // The velocity fit's exact sums (a GCC/Clang extension, hence __extension__).
 __extension__ typedef __int128 FitSum;

@@ -26,7 +26,7 @@ void publish_encoded(Publisher& publisher, const Msg& message, std::int64_t utim
   if (slot == nullptr) return;
   const int n = message.encode(slot->bytes.data(), 0, static_cast<int>(slot->bytes.size()));
   if (n < 0) return;  // cannot happen with checked sizes; the slot is simply not committed
-  slot->channel = msg::KindOf<Msg>::value;
+  slot->channel = messages::KindOf<Msg>::value;
   slot->size = static_cast<std::uint32_t>(n);
   slot->utime_us = utime_us;
   slot->seq = message.seq;

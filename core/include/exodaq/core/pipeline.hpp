@@ -44,8 +44,8 @@ struct ConfigFiles {
 
 struct PipelineConfig {
   std::array<JointTrackerConfig, kJointCount> joints;
-  kin::Chain chain;  // with the calibration's DH deviations and palm offset applied
-  kin::RigKinematicsConfig rig;
+  kinematics::Chain chain;  // with the calibration's DH deviations and palm offset applied
+  kinematics::RigKinematicsConfig rig;
   // Set by a reload (Acquisition::stage_reload): the loop's new clock policy,
   // handed over with the rest of the configuration.
   std::optional<ClockPolicy> clock;
@@ -65,7 +65,7 @@ struct CycleResult {
   std::uint32_t sample_flags = 0;  // drivers::sample_flag bits (incl. clock and late bits)
   std::array<JointReading, kJointCount> joints{};
   std::array<JointEvent, kJointCount> events{};
-  kin::RigPose pose;
+  kinematics::RigPose pose;
   bool valid = false;
   std::uint32_t invalid_reason = 0;
 };
@@ -100,7 +100,7 @@ class Pipeline {
  private:
   const PipelineConfig* config_;
   std::array<JointTracker, kJointCount> trackers_;
-  kin::JointVector q_;
+  kinematics::JointVector q_;
 };
 
 }  // namespace exodaq::core

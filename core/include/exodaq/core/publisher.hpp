@@ -27,7 +27,7 @@ namespace exodaq::core {
 inline constexpr std::size_t kMaxMessageBytes = 1536;
 
 struct OutgoingMessage {
-  msg::Kind channel = msg::Kind::kJointState;
+  messages::Kind channel = messages::Kind::kJointState;
   std::uint32_t size = 0;
   std::int64_t utime_us = 0;  // the message's sample time (log files use it as the event time)
   std::int64_t seq = 0;       // its cycle's seq (failure reports name it)
@@ -113,7 +113,7 @@ class Publisher {
   std::int64_t failures() const noexcept { return failures_.load(std::memory_order_relaxed); }
   std::int64_t ring_drops() const noexcept { return drops_.load(std::memory_order_relaxed); }
   PublishHealth health() const noexcept;
-  const std::string& channel_name(msg::Kind id) const noexcept {
+  const std::string& channel_name(messages::Kind id) const noexcept {
     return channels_[static_cast<std::size_t>(id)];
   }
 
@@ -125,7 +125,7 @@ class Publisher {
 
   std::unique_ptr<MessageSink> sink_;
   bool direct_ = false;
-  std::array<std::string, msg::kKindCount> channels_;
+  std::array<std::string, messages::kKindCount> channels_;
   std::vector<OutgoingMessage> slots_;
   std::size_t mask_;
   OutgoingMessage direct_slot_;                     // the loop's one slot when it sends itself

@@ -22,14 +22,14 @@
 
 #include "exodaq/status_t.hpp"
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 class Subscriber;
 }
 namespace exodaq::core {
 class Acquisition;
 class UdpmChannelReceiver;
 }  // namespace exodaq::core
-namespace exodaq::config {
+namespace exodaq::settings {
 struct ServiceConfig;
 }
 
@@ -136,7 +136,7 @@ class ForeignRunListener {
   // udpm:// : a socket that the kernel wakes only for the status channel
   // (udpm_receiver.hpp); any other URL: an LCM subscription.
   std::unique_ptr<core::UdpmChannelReceiver> udpm_;
-  std::unique_ptr<msg::Subscriber> sub_;
+  std::unique_ptr<messages::Subscriber> sub_;
   status_t status_;                   // decoded into, on the listening thread
   core::Acquisition* acq_ = nullptr;  // null before watch(): start-up window
   std::optional<Heard> first_heard_;
@@ -158,7 +158,7 @@ class ChannelClaim {
   // Takes the lock, then listens for startup_listen_ms(). Throws
   // InstanceConflict naming the other publisher (lock holder, or a run id
   // heard), std::runtime_error when the lock or LCM cannot be set up.
-  ChannelClaim(const config::ServiceConfig& config, const std::string& config_path);
+  ChannelClaim(const settings::ServiceConfig& config, const std::string& config_path);
   // Before acq.start(): the lock file names the run id; the listener watches.
   void attach(core::Acquisition& acq);
   // Before the acquisition goes away (and before logging shuts down).

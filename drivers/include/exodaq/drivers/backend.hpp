@@ -13,9 +13,9 @@
 #include "exodaq/drivers/encoder_source.hpp"
 #include "exodaq/drivers/source_options.hpp"
 
-namespace exodaq::config {
-class MapReader;  // config/yaml_reader.hpp: what a backend's parser reads
-}  // namespace exodaq::config
+namespace exodaq {
+class MapReader;  // exodaq/common/yaml_reader.hpp: what a backend's parser reads
+}  // namespace exodaq
 
 namespace exodaq::drivers {
 
@@ -31,9 +31,9 @@ struct Backend {
   std::string name;
   // Reads `source.<name>`; `section` is null when the file has none. When the
   // backend is the selected one, `selected` is true (a backend that cannot run
-  // on defaults says so here, through `source`). Throws config::ConfigError.
-  std::function<std::shared_ptr<const BackendSettings>(config::MapReader* section,
-                                                       config::MapReader& source, bool selected)>
+  // on defaults says so here, through `source`). Throws exodaq::ConfigError.
+  std::function<std::shared_ptr<const BackendSettings>(exodaq::MapReader* section,
+                                                       exodaq::MapReader& source, bool selected)>
       parse;
   // Builds the source (devices open later, in start()). Throws std::runtime_error.
   std::function<std::unique_ptr<EncoderSource>(const BackendSettings& settings,

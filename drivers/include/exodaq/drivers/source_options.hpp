@@ -6,10 +6,10 @@
 #include <cstdint>
 #include <memory>
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 class Chain;                 // kinematics/chain.hpp
 struct RigKinematicsConfig;  // kinematics/rig_kinematics.hpp
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics
 
 namespace exodaq::drivers {
 
@@ -30,10 +30,10 @@ struct SourceContext {
   std::array<SourceJointContext, 6> joints{};
   // The model (the sim plans task motion with it) and its elbow frame and
   // shoulder joints; shared, so that a backend that plans nothing needs no
-  // kinematics headers. Null: none given (the defaults of kin::Chain and
-  // kin::RigKinematicsConfig).
-  std::shared_ptr<const kin::Chain> chain;
-  std::shared_ptr<const kin::RigKinematicsConfig> rig;
+  // kinematics headers. Null: none given (the defaults of kinematics::Chain and
+  // kinematics::RigKinematicsConfig).
+  std::shared_ptr<const kinematics::Chain> chain;
+  std::shared_ptr<const kinematics::RigKinematicsConfig> rig;
 };
 
 }  // namespace exodaq::drivers

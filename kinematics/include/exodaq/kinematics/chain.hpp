@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 inline constexpr int kMaxJoints = 8;
 
@@ -145,4 +145,4 @@ Eigen::Matrix<double, 3, 4> shoulder_orientation_jacobian_closed_form(double t1,
 // Quaternion (w, x, y, z) with w >= 0, so a pose has one published form.
 Eigen::Vector4d quaternion_wxyz(const Eigen::Matrix3d& R) noexcept;
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

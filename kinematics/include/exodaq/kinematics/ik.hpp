@@ -19,7 +19,7 @@
 #include "exodaq/kinematics/chain.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 struct IkOptions {
   double position_tolerance = 1e-9;     // m: a solution's palm position is this close
@@ -115,4 +115,4 @@ class IkSolver {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

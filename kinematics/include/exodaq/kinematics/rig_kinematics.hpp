@@ -3,7 +3,7 @@
 // position and the shoulder's manipulability (seed 000 eq. 1-2, Fig. 18).
 #include "exodaq/kinematics/chain.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 struct RigKinematicsConfig {
   int elbow_frame = 4;      // frame whose origin is the elbow (seed 000: frame 4, at d4 = L1)
@@ -30,4 +30,4 @@ struct RigPose {
 void evaluate_rig(const Chain& chain, const RigKinematicsConfig& config, const JointVector& q,
                   RigPose& out) noexcept;
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

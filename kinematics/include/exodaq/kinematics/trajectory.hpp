@@ -9,7 +9,7 @@
 
 #include "exodaq/kinematics/chain.hpp"
 
-namespace exodaq::kin {
+namespace exodaq::kinematics {
 
 enum class SegmentShape {
   kCubic,    // position and velocity continuous at the via points
@@ -70,4 +70,4 @@ class JointTrajectory {
   JointVector peak_acceleration_;
 };
 
-}  // namespace exodaq::kin
+}  // namespace exodaq::kinematics

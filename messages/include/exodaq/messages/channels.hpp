@@ -16,7 +16,7 @@ namespace exodaq {
 #undef EXODAQ_MESSAGE
 }  // namespace exodaq
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 // One kind per line of the list, numbered in its order from 0.
 enum class Kind : std::uint8_t {
@@ -73,4 +73,4 @@ std::optional<Kind> kind_of_payload(const void* data, std::size_t size) noexcept
 // escaped so that a prefix like "rig.2" matches only itself.
 std::string regex_escape(std::string_view literal);
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

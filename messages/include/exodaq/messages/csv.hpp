@@ -14,7 +14,7 @@
 
 #include "exodaq/messages/message.hpp"
 
-namespace exodaq::msg::csv {
+namespace exodaq::messages::csv {
 
 inline constexpr int kJoints = 6;
 using JointNames = std::array<std::string, kJoints>;
@@ -66,4 +66,4 @@ enum class Spaces { kKeep, kTrim };
 // when a quoted value is not closed.
 bool split(std::string_view line, std::vector<std::string>& out, Spaces spaces = Spaces::kKeep);
 
-}  // namespace exodaq::msg::csv
+}  // namespace exodaq::messages::csv

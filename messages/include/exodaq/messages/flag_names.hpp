@@ -9,7 +9,7 @@
 #include <string_view>
 #include <vector>
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 std::string joint_flag_names(std::int32_t flags);
 std::string sample_flag_names(std::int32_t flags);
@@ -27,4 +27,4 @@ std::size_t write_sample_flag_names(std::int32_t flags, char* out, std::size_t c
 // One name per set bit, in bit order (empty for none): JSON arrays.
 std::vector<std::string> joint_flag_list(std::int32_t flags);
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

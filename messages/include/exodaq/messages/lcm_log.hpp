@@ -18,7 +18,7 @@ namespace exodaq::files {
 class OutputFile;
 }
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 inline constexpr std::uint32_t kLcmLogMagic = 0xEDA1DA01U;
 
@@ -195,4 +195,4 @@ struct OwnedEvent {
 std::vector<OwnedEvent> read_log(const std::string& path);
 void write_log(const std::string& path, const std::vector<OwnedEvent>& events);
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

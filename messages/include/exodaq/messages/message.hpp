@@ -13,7 +13,7 @@
 #include "exodaq/message_types.hpp"
 #include "exodaq/messages/channels.hpp"
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 namespace detail {
 template <typename First, typename... T>
@@ -101,4 +101,4 @@ std::string printable(std::string_view text);
 // lcm-gen's hashes are initialised off the loop); recordings hold them.
 bool is_startup_message(const Stamp& s) noexcept;
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -4,7 +4,7 @@
 #include "exodaq/drivers/encoder_sample.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 // The sample's content (presence, board sequence, counts, index latches,
 // board state and errors, source flags, wall_ns). The header (utime, mono_ns,
@@ -15,4 +15,4 @@ void to_encoder_raw(const drivers::EncoderSample& sample, encoder_raw_t& out) no
 // utime * 1000 (so utime maps back exactly), every channel fresh when present.
 void from_encoder_raw(const encoder_raw_t& raw, drivers::EncoderSample& out) noexcept;
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -10,7 +10,7 @@
 #include <set>
 #include <string>
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 struct RunMix {
   std::string prefix;
@@ -39,4 +39,4 @@ class RunMixDetector {
   bool mixed_ = false;
 };
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -27,7 +27,7 @@
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/status_t.hpp"
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 // What one status_t says about the daemon's publishing up to its seq.
 struct DaemonCounts {
@@ -92,4 +92,4 @@ class RunAccount {
 // the like, for summaries.
 std::string describe(const SeqTally& t);
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -18,7 +18,7 @@ class LCM;
 struct ReceiveBuffer;
 }  // namespace lcm
 
-namespace exodaq::msg {
+namespace exodaq::messages {
 
 // The daemon's default: multicast, TTL 0, so nothing leaves the host.
 inline constexpr const char* kDefaultUrl = "udpm://239.255.76.67:7667?ttl=0";
@@ -75,4 +75,4 @@ class Subscriber {
   std::function<void(const RunMix&)> mix_handler_;
 };
 
-}  // namespace exodaq::msg
+}  // namespace exodaq::messages

@@ -69,7 +69,7 @@ class Subscriber:
     prefix: the daemon's lcm.prefix, used literally.
     kinds: which messages, by short name (default joint_state, palm_pose, status).
     Counters, for checking nothing was lost (per-cycle kinds, counted per run;
-    the rule of the C++ msg::RunAccount, docs/messages.md "Counting what was
+    the rule of the C++ messages::RunAccount, docs/messages.md "Counting what was
     lost"):
       lost[kind]     cycles the daemon published that did not arrive: lost on
                      the way to this process (socket buffer full, network)

@@ -41,7 +41,7 @@ def kind(name):
 
 
 def parse_kind(text):
-    """As kind(), but None for an unknown name (C++ msg::parse_kind)."""
+    """As kind(), but None for an unknown name (C++ messages::parse_kind)."""
     if isinstance(text, Kind):
         return text
     u = str(text).upper()

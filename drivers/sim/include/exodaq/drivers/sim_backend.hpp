@@ -42,7 +42,7 @@ sim::SimOptions sim_options_from(const SimSourceSettings& settings, const Source
 sim::SimOptions sim_options_from(const SourceOptions& options, const SourceContext& context);
 
 // One scripted fault from its YAML mapping (source.sim.faults[i], or
-// exodaq-board-sim --fault). Throws config::ConfigError.
-sim::SimFault parse_sim_fault(config::MapReader& m);
+// exodaq-board-sim --fault). Throws exodaq::ConfigError.
+sim::SimFault parse_sim_fault(exodaq::MapReader& m);
 
 }  // namespace exodaq::drivers

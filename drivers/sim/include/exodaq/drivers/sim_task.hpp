@@ -2,7 +2,7 @@
 // The task-driven motion of the simulated rig: a task file (palm targets in
 // O0 with dwell times, optionally drawn in a box) and its plan, joint motion
 // by inverse kinematics and joint trajectories. Loading and planning are
-// start-up work (they allocate and throw config::ConfigError with file:line);
+// start-up work (they allocate and throw exodaq::ConfigError with file:line);
 // sample_move() is allocation-free. File format, planning and the default
 // reach-grasp-feed loop: docs/simulator.md ("Task-driven motion").
 #include <Eigen/Geometry>
@@ -54,8 +54,8 @@ SimTaskFile load_sim_task(const std::string& path);
 // A task file on a rig: the model it plans with and the joints' speed bounds.
 struct SimTask {
   std::shared_ptr<const SimTaskFile> file;
-  kin::Chain chain;
-  kin::RigKinematicsConfig rig;
+  kinematics::Chain chain;
+  kinematics::RigKinematicsConfig rig;
   Vec6 max_speed_rad_s{};  // the config's encoders.joints[].max_speed_rad_s
 };
 
@@ -66,20 +66,21 @@ struct SimTaskPlan {
   struct Stop {
     int trip = 0;
     int step = 0;
-    kin::Pose target = kin::Pose::Identity();  // the palm pose planned for (made reachable)
-    double adjust_rad = 0.0;                   // how far the target's orientation was turned
-    Vec6 posture{};                            // joint angles there
-    double arrive_s = 0.0;                     // in the loop
+    kinematics::Pose target =
+        kinematics::Pose::Identity();  // the palm pose planned for (made reachable)
+    double adjust_rad = 0.0;           // how far the target's orientation was turned
+    Vec6 posture{};                    // joint angles there
+    double arrive_s = 0.0;             // in the loop
   };
   std::vector<Stop> stops;
-  std::vector<kin::JointTrajectory> moves;
+  std::vector<kinematics::JointTrajectory> moves;
   std::vector<SimMotion::Segment> lead_in;
   std::vector<SimMotion::Segment> loop;
   double period_s = 0.0;
 };
 
 // Plans `task` from `o.home_rad`, within o's joint limits, random targets from
-// `seed`. Throws config::ConfigError (task file:line) for a target out of reach.
+// `seed`. Throws exodaq::ConfigError (task file:line) for a target out of reach.
 SimTaskPlan plan_sim_task(const SimTask& task, const SimMotionOptions& o, std::uint64_t seed);
 
 // State of move `move` at time t into it (allocation-free).

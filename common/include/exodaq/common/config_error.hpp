@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace exodaq::config {
+namespace exodaq {
 
 // "file:line: what" (line is 1-based; omitted when unknown).
 class ConfigError : public std::runtime_error {
@@ -21,4 +21,4 @@ class ConfigError : public std::runtime_error {
   std::string reason_;
 };
 
-}  // namespace exodaq::config
+}  // namespace exodaq

@@ -14,7 +14,7 @@
 
 #include "encoder_logs.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/csv.hpp"
@@ -24,8 +24,8 @@
 
 namespace exodaq::calibration {
 
-using config::ConfigError;
 using detail::EncoderStore;
+using exodaq::ConfigError;
 
 namespace {
 
@@ -113,8 +113,8 @@ ExportColumns export_columns(const std::vector<std::string>& fields, int line,
   ExportColumns c;
   c.utime = need("utime_us");
   std::vector<std::string> joints;
-  const std::string pos(msg::csv::kPositionSuffix);
-  const std::string vel(msg::csv::kVelocitySuffix);
+  const std::string pos(messages::csv::kPositionSuffix);
+  const std::string vel(messages::csv::kVelocitySuffix);
   for (const auto& f : fields) {
     const bool is_pos =
         f.size() > pos.size() && f.compare(f.size() - pos.size(), pos.size(), pos) == 0;
@@ -128,8 +128,8 @@ ExportColumns export_columns(const std::vector<std::string>& fields, int line,
   }
   for (int j = 0; j < kJoints; ++j) {
     c.position[j] = need(joints[j] + pos);
-    c.homed[j] = need(joints[j] + std::string(msg::csv::kHomedSuffix));
-    c.flags[j] = need(joints[j] + std::string(msg::csv::kFlagsSuffix));
+    c.homed[j] = need(joints[j] + std::string(messages::csv::kHomedSuffix));
+    c.flags[j] = need(joints[j] + std::string(messages::csv::kFlagsSuffix));
   }
   if (col.count("sample_flags")) c.sample_flags = col["sample_flags"];
   return c;
@@ -182,14 +182,15 @@ EncoderSeries read_joint_state_log(const std::string& path, const EncoderReadOpt
   std::string prefix;
   try {
     std::set<std::string> prefixes;
-    for (const auto& [channel, n] : msg::scan_channels(path)) {
-      const auto parts = msg::split_channel(channel);
-      if (parts && parts->kind == msg::Kind::kJointState) prefixes.insert(parts->prefix);
+    for (const auto& [channel, n] : messages::scan_channels(path)) {
+      const auto parts = messages::split_channel(channel);
+      if (parts && parts->kind == messages::Kind::kJointState) prefixes.insert(parts->prefix);
     }
     if (o.prefix) {
       if (prefixes.count(*o.prefix) == 0) {
-        throw ConfigError(path, 0,
-                          "no channel " + msg::channel_name(*o.prefix, msg::Kind::kJointState));
+        throw ConfigError(
+            path, 0,
+            "no channel " + messages::channel_name(*o.prefix, messages::Kind::kJointState));
       }
       prefix = *o.prefix;
     } else if (prefixes.size() != 1) {
@@ -201,31 +202,31 @@ EncoderSeries read_joint_state_log(const std::string& path, const EncoderReadOpt
     } else {
       prefix = *prefixes.begin();
     }
-  } catch (const msg::LogError& e) {
+  } catch (const messages::LogError& e) {
     throw ConfigError(path, 0, without_file(e.what(), path));
   }
   const auto& offsets = offsets_or_fail(o, path, 0);
-  const std::string channel = msg::channel_name(prefix, msg::Kind::kJointState);
+  const std::string channel = messages::channel_name(prefix, messages::Kind::kJointState);
   EncoderSeries out;
   out.source = path;
-  std::unique_ptr<msg::LogReader> reader;
+  std::unique_ptr<messages::LogReader> reader;
   try {
-    reader = std::make_unique<msg::LogReader>(path);
-  } catch (const msg::LogError& e) {
+    reader = std::make_unique<messages::LogReader>(path);
+  } catch (const messages::LogError& e) {
     throw ConfigError(path, 0, without_file(e.what(), path));
   }
-  msg::LogReader& log = *reader;
-  msg::LogEvent ev;
+  messages::LogReader& log = *reader;
+  messages::LogEvent ev;
   joint_state_t js;
   std::int64_t undecodable = 0;
   EncoderStore store;
   while (log.next(ev)) {
     if (ev.channel != channel) continue;
-    if (!msg::decode_into(js, ev.data, ev.size)) {
+    if (!messages::decode_into(js, ev.data, ev.size)) {
       ++undecodable;
       continue;
     }
-    if (msg::is_startup_message({js.utime, js.mono_ns, js.seq, js.run_id})) continue;
+    if (messages::is_startup_message({js.utime, js.mono_ns, js.seq, js.run_id})) continue;
     bool homed[kJoints];
     for (int j = 0; j < kJoints; ++j) homed[j] = js.homed[j] != 0;
     const EncoderSample s =
@@ -263,7 +264,7 @@ EncoderSeries read_encoder_log(const std::string& path, const EncoderReadOptions
   }
   const std::uint32_t m = (std::uint32_t{magic[0]} << 24) | (std::uint32_t{magic[1]} << 16) |
                           (std::uint32_t{magic[2]} << 8) | std::uint32_t{magic[3]};
-  if (info.size >= 4 && m == msg::kLcmLogMagic) return read_joint_state_log(path, o);
+  if (info.size >= 4 && m == messages::kLcmLogMagic) return read_joint_state_log(path, o);
   return EncoderCsvReader().read(path, o);
 }
 

@@ -8,13 +8,13 @@
 #include <memory>
 #include <string>
 
-#include "exodaq/config/calibration_file.hpp"
-#include "exodaq/config/model_file.hpp"
-#include "exodaq/config/service_settings.hpp"
 #include "exodaq/drivers/backend.hpp"
 #include "exodaq/drivers/source_options.hpp"
+#include "exodaq/settings/calibration_file.hpp"
+#include "exodaq/settings/model_file.hpp"
+#include "exodaq/settings/service_settings.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 struct ServiceConfig {
   std::string file;
@@ -55,4 +55,4 @@ std::string to_yaml(const ServiceConfig& config);
 // after mm, N samples" (the parts the file has).
 std::string provenance_text(const CalibrationProvenance& p);
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

@@ -4,7 +4,7 @@
 // masks; from calibrate's CSV, `exodaq export`'s CSV or an LCM log) and the
 // motion-capture marker stream (the long CSV, C3D, Vicon Nexus and OptiTrack
 // Motive CSV exports, told apart by content), and their alignment in time.
-// Errors are config::ConfigError "file:line: what". Inputs are regular files
+// Errors are exodaq::ConfigError "file:line: what". Inputs are regular files
 // within files::kMaxCsvBytes, read as streams: memory stays bounded whatever
 // their size (kMaxEncoderSamples, kMaxMarkerSamples; docs/robustness.md).
 #include <array>

@@ -8,7 +8,7 @@
 
 #include "exodaq/calibration/python_plot.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 
 namespace exodaq::calibration {
 

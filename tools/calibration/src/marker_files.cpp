@@ -15,14 +15,14 @@
 #include "csv_text.hpp"
 #include "exodaq/calibration/inputs.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "marker_readers.hpp"
 #include "sample_stores.hpp"
 
 namespace exodaq::calibration {
 
-using config::ConfigError;
 using detail::LineReader;
+using exodaq::ConfigError;
 
 const char* format_name(MarkerFormat f) noexcept {
   switch (f) {

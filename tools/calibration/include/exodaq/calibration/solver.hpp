@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "exodaq/calibration/inputs.hpp"
-#include "exodaq/config/calibration_file.hpp"
 #include "exodaq/kinematics/chain.hpp"
+#include "exodaq/settings/calibration_file.hpp"
 
 namespace exodaq::calibration {
 
@@ -53,13 +53,13 @@ double to_display(int p, double si) noexcept;  // rad -> deg, m -> mm
 double from_display(int p, double v) noexcept;
 const char* display_unit(int p) noexcept;  // "deg" or "mm"
 
-// The nominal standard-DH model the deviations apply to (from a kin::Chain).
+// The nominal standard-DH model the deviations apply to (from a kinematics::Chain).
 struct NominalModel {
-  std::array<kin::DhRow, 6> dh{};
+  std::array<kinematics::DhRow, 6> dh{};
   Eigen::Isometry3d base = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
 };
-NominalModel nominal_from_chain(const kin::Chain& chain);  // throws std::invalid_argument
+NominalModel nominal_from_chain(const kinematics::Chain& chain);  // throws std::invalid_argument
 
 // Marker position in the camera frame for joint readings θᴿ and parameters x
 // (seed 000 Fig. 12). Plain-double twin of the Ceres cost. Without a site: seed
@@ -226,7 +226,7 @@ std::vector<MarkerResiduals> residuals_per_marker(const std::vector<AlignedSampl
                                                   const std::vector<Eigen::Vector3d>& residuals);
 
 // The calibration the daemon reads (camera transform included for the record).
-config::Calibration to_calibration(const ParamVector& x);
-ParamVector from_calibration(const config::Calibration& cal);  // no camera: zeros
+settings::Calibration to_calibration(const ParamVector& x);
+ParamVector from_calibration(const settings::Calibration& cal);  // no camera: zeros
 
 }  // namespace exodaq::calibration

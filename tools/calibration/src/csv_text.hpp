@@ -1,7 +1,7 @@
 #pragma once
 // Private to the calibration library: reading the CSV inputs line by line in
 // bounded memory (docs/robustness.md "Memory"), splitting fields and parsing
-// numbers, with errors "file:line: what" (config::ConfigError).
+// numbers, with errors "file:line: what" (exodaq::ConfigError).
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -56,7 +56,7 @@ std::string trim(std::string_view s);
 bool next_row(LineReader& in, std::string& line, std::vector<std::string>& fields);
 // Comma-separated fields, trimmed; "double quoted" fields may hold commas
 // ("" is a quote inside them). A line ending in ',' has an empty last field.
-// msg::csv::split with Spaces::kTrim: the project's one CSV splitter.
+// messages::csv::split with Spaces::kTrim: the project's one CSV splitter.
 std::vector<std::string> split_fields(std::string_view line);
 
 // Integer / finite number of a field; errors name the file, line and column.

@@ -13,12 +13,12 @@
 #include "csv_text.hpp"
 #include "encoder_logs.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "sample_stores.hpp"
 
 namespace exodaq::calibration {
 
-using config::ConfigError;
+using exodaq::ConfigError;
 
 namespace {
 

@@ -2,7 +2,7 @@
 // Where the motion-capture markers of a calibration sit (docs/calibration.md
 // §3.5): on the hand/forearm (the last link, DH frame 6) or on the
 // exoskeleton's base (O0). Several markers make parameters identifiable that
-// one marker cannot (§6). Errors are config::ConfigError "file:line: what".
+// one marker cannot (§6). Errors are exodaq::ConfigError "file:line: what".
 #include <array>
 #include <string>
 #include <vector>

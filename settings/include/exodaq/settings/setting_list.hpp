@@ -16,7 +16,7 @@
 #include <string>
 #include <string_view>
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 // The unit of a key as written; `scale` converts it to the field's unit
 // (clock.step_threshold_ms is kept in ns).
@@ -215,4 +215,4 @@ static_assert(kMaxVelocityWindow == 64, "encoders.velocity_window's rule says 'b
 // A field of a settings struct, from its row.
 #define EXODAQ_SETTING_FIELD(type, field, key, def, unit, rule, reload, doc) type field = def;
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

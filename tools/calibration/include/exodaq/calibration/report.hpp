@@ -32,7 +32,7 @@ void write_residual_csv(const std::string& path, const std::vector<std::int64_t>
                         const std::vector<std::vector<std::int64_t>>& validation_utime,
                         const std::vector<std::string>& inputs = {});
 
-// Runs tools/calibrate/plot_residuals.py (installed next to the binary or in the
+// Runs tools/calibration/plot_residuals.py (installed next to the binary or in the
 // source tree) on the CSV (run_plot_script: the PNG is written whole or not at
 // all). Returns false with `message` set when Python or matplotlib is
 // missing; the calibration itself is unaffected.

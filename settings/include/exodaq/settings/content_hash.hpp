@@ -5,8 +5,8 @@
 #include <string>
 #include <string_view>
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 std::string sha256_hex(std::string_view bytes);
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

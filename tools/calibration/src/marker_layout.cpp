@@ -3,14 +3,14 @@
 #include <algorithm>
 
 #include "exodaq/calibration/inputs.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 
 namespace exodaq::calibration {
 
 namespace {
 
 MarkerSite read_site(const std::string& file, const YAML::Node& node, std::size_t index) {
-  config::MapReader m(file, node, "markers[" + std::to_string(index) + "]");
+  exodaq::MapReader m(file, node, "markers[" + std::to_string(index) + "]");
   MarkerSite s;
   if (!m.has("id") && !m.has("label")) {
     m.fail(m.node(), "a marker needs an 'id' (long CSV), a 'label' (C3D, Vicon, Motive) or both");
@@ -32,7 +32,7 @@ MarkerSite read_site(const std::string& file, const YAML::Node& node, std::size_
 }
 
 MarkerLayout parse_layout(const YAML::Node& root, const std::string& file) {
-  config::MapReader top(file, root, "marker layout");
+  exodaq::MapReader top(file, root, "marker layout");
   const YAML::Node format = top.child("format");
   if (!format.IsScalar() || format.Scalar() != "exodaq-marker-layout-1") {
     top.fail(format, "'format' must be 'exodaq-marker-layout-1'");
@@ -101,11 +101,11 @@ MarkerLayout resolved_layout(const MarkerLayout& layout, const MarkerSeries& ser
 }
 
 MarkerLayout load_marker_layout_file(const std::string& path) {
-  return parse_layout(config::load_yaml_file(path), path);
+  return parse_layout(exodaq::load_yaml_file(path), path);
 }
 
 MarkerLayout load_marker_layout_text(const std::string& text, const std::string& name) {
-  return parse_layout(config::load_yaml_text(text, name), name);
+  return parse_layout(exodaq::load_yaml_text(text, name), name);
 }
 
 }  // namespace exodaq::calibration

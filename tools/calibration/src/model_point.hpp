@@ -17,7 +17,7 @@ Eigen::Matrix<T, 3, 1> frame6_to_world(const NominalModel& m, const T* x, const 
   using std::cos;
   using std::sin;
   for (int i = 5; i >= 0; --i) {
-    const kin::DhRow& r = m.dh[i];
+    const kinematics::DhRow& r = m.dh[i];
     T a = T(r.a);
     T d = T(r.d);
     if (i == 1) d += x[kDd2];

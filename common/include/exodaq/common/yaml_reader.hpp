@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "exodaq/config/config_error.hpp"
+#include "exodaq/common/config_error.hpp"
 
-namespace exodaq::config {
+namespace exodaq {
 
 // Parses a whole file. Throws ConfigError for unreadable files, YAML syntax
 // errors (with the parser's line) and empty documents.
@@ -93,4 +93,4 @@ class MapReader {
 // radians with `_rad`; helpers for that live with each loader.
 inline constexpr double kDegToRad = 0.017453292519943295;
 
-}  // namespace exodaq::config
+}  // namespace exodaq

@@ -24,13 +24,13 @@
 
 #include "csv_text.hpp"
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "marker_readers.hpp"
 #include "sample_stores.hpp"
 
 namespace exodaq::calibration::detail {
 
-using config::ConfigError;
+using exodaq::ConfigError;
 
 namespace {
 

@@ -9,7 +9,7 @@ namespace exodaq::calibration {
 
 // Path of the script `file_name`: the file named by the environment variable
 // `env_var` if it exists, else the installed copy (<binary>/../share/exodaq/),
-// else the source tree's (tools/calibrate/). "" when none exists.
+// else the source tree's (tools/calibration/). "" when none exists.
 std::string find_plot_script(const char* env_var, const std::string& file_name);
 
 // Runs `python3 script args... PNG` with PNG in a private temporary folder,

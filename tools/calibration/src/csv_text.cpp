@@ -10,12 +10,12 @@
 #include <map>
 
 #include "exodaq/common/files.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/messages/csv.hpp"
 
 namespace exodaq::calibration::detail {
 
-using config::ConfigError;
+using exodaq::ConfigError;
 
 namespace {
 constexpr std::size_t kBufferBytes = 64 * 1024;
@@ -149,7 +149,7 @@ bool next_row(LineReader& in, std::string& line, std::vector<std::string>& field
 
 std::vector<std::string> split_fields(std::string_view line) {
   std::vector<std::string> out;
-  msg::csv::split(line, out, msg::csv::Spaces::kTrim);
+  messages::csv::split(line, out, messages::csv::Spaces::kTrim);
   return out;
 }
 

@@ -6,19 +6,19 @@
 // for every problem and never crashes on any input.
 #include <string>
 
-#include "exodaq/config/config_error.hpp"
+#include "exodaq/common/config_error.hpp"
 #include "exodaq/kinematics/chain.hpp"
 #include "exodaq/kinematics/rig_kinematics.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 struct KinematicModel {
   std::string name;
   std::string description;
-  std::string file;               // where it was read from (or the name given to load_model_text)
-  kin::Chain chain;               // lengths in metres, angles in radians
-  kin::JointVector home_posture;  // radians, within the joint limits
-  kin::RigKinematicsConfig rig;   // elbow_frame, shoulder_joints, normaliser, threshold
+  std::string file;         // where it was read from (or the name given to load_model_text)
+  kinematics::Chain chain;  // lengths in metres, angles in radians
+  kinematics::JointVector home_posture;  // radians, within the joint limits
+  kinematics::RigKinematicsConfig rig;   // elbow_frame, shoulder_joints, normaliser, threshold
 };
 
 KinematicModel load_model_file(const std::string& path);
@@ -30,4 +30,4 @@ KinematicModel load_model_text(const std::string& text, const std::string& name)
 // installed /etc/exodaq/models/macaque_exo.yaml.
 std::string default_model_path();
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

@@ -4,7 +4,7 @@
 
 #include "detail.hpp"
 #include "exodaq/calibration/solver.hpp"
-#include "exodaq/config/yaml_reader.hpp"
+#include "exodaq/common/yaml_reader.hpp"
 
 namespace exodaq::calibration {
 
@@ -31,7 +31,7 @@ constexpr std::array<ParamInfo, kParams> kInfo{{
 }};
 
 // lower/upper may be omitted for a fixed parameter.
-void read_range(config::MapReader& m, int p, bool fixed, double init, double& lo, double& hi) {
+void read_range(exodaq::MapReader& m, int p, bool fixed, double init, double& lo, double& hi) {
   lo = init;
   hi = init;
   if (!fixed || m.has("lower") || m.has("upper")) {
@@ -49,8 +49,8 @@ void read_range(config::MapReader& m, int p, bool fixed, double init, double& lo
   }
 }
 
-ParamPrior read_prior(config::MapReader& parent, int p) {
-  config::MapReader m = parent.map(kInfo[p].key);
+ParamPrior read_prior(exodaq::MapReader& parent, int p) {
+  exodaq::MapReader m = parent.map(kInfo[p].key);
   ParamPrior pr;
   pr.fixed = m.boolean_or("fixed", false);
   const double init = m.number("initial");
@@ -63,7 +63,7 @@ ParamPrior read_prior(config::MapReader& parent, int p) {
   return pr;
 }
 
-void read_time_offset(config::MapReader& t, TimeOffsetPrior& o) {
+void read_time_offset(exodaq::MapReader& t, TimeOffsetPrior& o) {
   o.initial_s = t.number("initial") * 1e-3;
   o.lower_s = t.number("lower") * 1e-3;
   o.upper_s = t.number("upper") * 1e-3;
@@ -73,7 +73,7 @@ void read_time_offset(config::MapReader& t, TimeOffsetPrior& o) {
   t.finish();
 }
 
-void read_identifiability(config::MapReader& id, IdentifiabilityOptions& o) {
+void read_identifiability(exodaq::MapReader& id, IdentifiabilityOptions& o) {
   o.max_std_angle_rad = id.number_or("max_std_deg", o.max_std_angle_rad * kRadToDeg) * kDegToRad;
   o.max_std_length_m = id.number_or("max_std_mm", o.max_std_length_m * kMToMm) / kMToMm;
   o.noise_floor_m = id.number_or("noise_floor_mm", o.noise_floor_m * kMToMm) / kMToMm;
@@ -86,14 +86,14 @@ void read_identifiability(config::MapReader& id, IdentifiabilityOptions& o) {
 }
 
 Bounds parse_bounds(const YAML::Node& root, const std::string& file) {
-  config::MapReader top(file, root, "bounds");
+  exodaq::MapReader top(file, root, "bounds");
   Bounds b;
   b.source = file;
   const YAML::Node format = top.child("format");
   if (!format.IsScalar() || format.Scalar() != "exodaq-calibration-bounds-1") {
     top.fail(format, "'format' must be 'exodaq-calibration-bounds-1'");
   }
-  config::MapReader params = top.map("parameters");
+  exodaq::MapReader params = top.map("parameters");
   for (int p = 0; p < kParams; ++p) b.params[p] = read_prior(params, p);
   params.finish();
   if (auto t = top.optional_map("time_offset_ms")) read_time_offset(*t, b.time_offset);
@@ -139,8 +139,8 @@ const char* status_name(ParamStatus s) noexcept {
   return "?";
 }
 
-NominalModel nominal_from_chain(const kin::Chain& chain) {
-  if (chain.convention() != kin::Convention::kStandardDh || chain.joint_count() != 6) {
+NominalModel nominal_from_chain(const kinematics::Chain& chain) {
+  if (chain.convention() != kinematics::Convention::kStandardDh || chain.joint_count() != 6) {
     throw std::invalid_argument(
         "calibration needs a six-joint standard-DH model (seed 000 Table 3); the deviations "
         "Δd2, Δd3, Δd5, Δa3, Δa5 are defined on that table");
@@ -153,10 +153,10 @@ NominalModel nominal_from_chain(const kin::Chain& chain) {
 }
 
 Bounds load_bounds_file(const std::string& path) {
-  return parse_bounds(config::load_yaml_file(path), path);
+  return parse_bounds(exodaq::load_yaml_file(path), path);
 }
 Bounds load_bounds_text(const std::string& text, const std::string& name) {
-  return parse_bounds(config::load_yaml_text(text, name), name);
+  return parse_bounds(exodaq::load_yaml_text(text, name), name);
 }
 
 ParamVector initial_params(const Bounds& b) {
@@ -171,19 +171,19 @@ ParamVector estimates(const Report& r) {
   return x;
 }
 
-config::Calibration to_calibration(const ParamVector& x) {
-  config::Calibration c;
+settings::Calibration to_calibration(const ParamVector& x) {
+  settings::Calibration c;
   for (int j = 0; j < 6; ++j) c.encoder_offset_rad[j] = x[kTheta1 + j];
   c.dh = {x[kDd2], x[kDd3], x[kDd5], x[kDa3], x[kDa5]};
   c.marker_offset_m = {x[kPx], x[kPy], x[kPz]};
-  config::CameraTransform cam;
+  settings::CameraTransform cam;
   cam.translation_m = {x[kDx], x[kDy], x[kDz]};
   cam.euler_xyz_rad = {x[kPhiX], x[kPhiY], x[kPhiZ]};
   c.camera = cam;
   return c;
 }
 
-ParamVector from_calibration(const config::Calibration& c) {
+ParamVector from_calibration(const settings::Calibration& c) {
   ParamVector x{};
   for (int j = 0; j < 6; ++j) x[kTheta1 + j] = c.encoder_offset_rad[j];
   x[kDd2] = c.dh.d2;

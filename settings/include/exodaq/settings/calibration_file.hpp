@@ -13,7 +13,7 @@
 
 #include "exodaq/kinematics/chain.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 inline constexpr int kCalibrationJoints = 6;
 inline constexpr const char* kCalibrationFormat = "exodaq-calibration-1";
@@ -79,6 +79,6 @@ void write_calibration_file(const std::string& path, const Calibration& cal,
 // tool translation gets Δpᴹ (frame 6 coordinates). Standard DH, six joints
 // only; throws std::invalid_argument otherwise. Encoder offsets are not part
 // of the chain: the daemon's homing applies them.
-kin::Chain apply_calibration(const kin::Chain& nominal, const Calibration& cal);
+kinematics::Chain apply_calibration(const kinematics::Chain& nominal, const Calibration& cal);
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

@@ -8,9 +8,9 @@
 #include <cstdint>
 #include <string>
 
-#include "exodaq/config/setting_list.hpp"
+#include "exodaq/settings/setting_list.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 // The service publishes exactly six joints (the arrays of joint_state_t).
 inline constexpr int kJointCount = 6;
@@ -44,4 +44,4 @@ struct LoggingSettings {
   EXODAQ_LOGGING_SETTINGS(EXODAQ_SETTING_FIELD)
 };
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings

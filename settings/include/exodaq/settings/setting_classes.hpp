@@ -10,9 +10,9 @@
 #include <string_view>
 #include <vector>
 
-#include "exodaq/config/service_config.hpp"
+#include "exodaq/settings/service_config.hpp"
 
-namespace exodaq::config {
+namespace exodaq::settings {
 
 enum class Apply {
   kLive,     // takes effect at the next cycle boundary after the reload
@@ -61,4 +61,4 @@ std::string setting_number(double v);
 // A YAML double-quoted string.
 std::string setting_quoted(std::string_view v);
 
-}  // namespace exodaq::config
+}  // namespace exodaq::settings
