@@ -46,13 +46,43 @@ std::vector<sock_filter> channel_filter(const std::string& channel) {
   return p;
 }
 
-[[noreturn]] void fail(const std::string& url, const char* what) {
+}  // namespace
+
+void listen_failure(const std::string& url, const char* what) {
   const int e = errno;
   throw std::runtime_error("cannot listen on LCM '" + url + "': " + what + ": " +
                            strerrordesc_np(e));
 }
 
-}  // namespace
+int open_group_socket(const UdpmAddress& address, const std::string& url,
+                      const std::function<void(int fd)>& configure) {
+  const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) listen_failure(url, "socket");
+  try {
+    const int one = 1;
+    if (setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0) {
+      listen_failure(url, "SO_REUSEADDR");
+    }
+    configure(fd);
+    sockaddr_in local{};
+    local.sin_family = AF_INET;
+    local.sin_addr.s_addr = htonl(INADDR_ANY);
+    local.sin_port = htons(address.port);
+    if (bind(fd, reinterpret_cast<const sockaddr*>(&local), sizeof local) != 0) {
+      listen_failure(url, "bind");
+    }
+    ip_mreq group{};
+    group.imr_multiaddr = address.group;
+    group.imr_interface.s_addr = htonl(INADDR_ANY);
+    if (setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &group, sizeof group) != 0) {
+      listen_failure(url, "joining the group");
+    }
+  } catch (...) {
+    close(fd);
+    throw;
+  }
+  return fd;
+}
 
 UdpmChannelReceiver::UdpmChannelReceiver(const UdpmAddress& address, const std::string& url,
                                          const std::string& channel)
@@ -61,36 +91,13 @@ UdpmChannelReceiver::UdpmChannelReceiver(const UdpmAddress& address, const std::
     throw std::runtime_error("LCM channel '" + channel + "' is longer than 63 characters");
   }
   payload_offset_ = kLc02HeaderBytes + channel.size() + 1;
-  fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  if (fd_ < 0) fail(url, "socket");
-  try {
-    const int one = 1;
-    if (setsockopt(fd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0) {
-      fail(url, "SO_REUSEADDR");
-    }
-    // The filter before the bind: nothing else is ever queued.
+  fd_ = open_group_socket(address, url, [&](int fd) {
     std::vector<sock_filter> program = channel_filter(channel);
     sock_fprog fprog{static_cast<unsigned short>(program.size()), program.data()};
-    if (setsockopt(fd_, SOL_SOCKET, SO_ATTACH_FILTER, &fprog, sizeof fprog) != 0) {
-      fail(url, "SO_ATTACH_FILTER");
+    if (setsockopt(fd, SOL_SOCKET, SO_ATTACH_FILTER, &fprog, sizeof fprog) != 0) {
+      listen_failure(url, "SO_ATTACH_FILTER");
     }
-    sockaddr_in local{};
-    local.sin_family = AF_INET;
-    local.sin_addr.s_addr = htonl(INADDR_ANY);
-    local.sin_port = htons(address.port);
-    if (bind(fd_, reinterpret_cast<const sockaddr*>(&local), sizeof local) != 0) {
-      fail(url, "bind");
-    }
-    ip_mreq group{};
-    group.imr_multiaddr = address.group;
-    group.imr_interface.s_addr = htonl(INADDR_ANY);
-    if (setsockopt(fd_, IPPROTO_IP, IP_ADD_MEMBERSHIP, &group, sizeof group) != 0) {
-      fail(url, "joining the group");
-    }
-  } catch (...) {
-    close(fd_);
-    throw;
-  }
+  });
 }
 
 UdpmChannelReceiver::~UdpmChannelReceiver() {

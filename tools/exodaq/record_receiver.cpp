@@ -16,6 +16,9 @@
 #include <future>
 #include <stdexcept>
 
+#include "exodaq/common/clock_now.hpp"
+#include "exodaq/core/udpm_receiver.hpp"
+
 namespace exodaq::tools::record {
 
 namespace {
@@ -24,18 +27,6 @@ constexpr int kBatch = 64;                 // datagrams per recvmmsg
 constexpr std::size_t kSlotBytes = 65536;  // the largest UDP payload, and then some
 constexpr std::size_t kRecordHeader = 24;
 constexpr int kPollMs = 20;  // a partial block goes to the writer after this much quiet
-
-[[noreturn]] void fail(const std::string& url, const char* what) {
-  const int e = errno;
-  throw std::runtime_error("cannot listen on LCM '" + url + "': " + what + ": " +
-                           strerrordesc_np(e));
-}
-
-std::int64_t realtime_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 void raise_to(std::atomic<std::int64_t>& v, std::int64_t x) {
   std::int64_t cur = v.load(std::memory_order_relaxed);
@@ -74,44 +65,29 @@ struct Receiver::Slots {
 
 Receiver::Receiver(const ReceiverOptions& options) : options_(options) {
   const std::string& url = options.url;
-  fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  if (fd_ < 0) fail(url, "socket");
-  try {
+  fd_ = core::open_group_socket(options.address, url, [&](int fd) {
     const int one = 1;
     const int zero = 0;
-    if (setsockopt(fd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0) fail(url, "SO_REUSEADDR");
-    if (setsockopt(fd_, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof one) != 0) fail(url, "SO_RXQ_OVFL");
-    if (setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one) != 0) {
-      fail(url, "SO_TIMESTAMPNS");
+    if (setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof one) != 0) {
+      core::listen_failure(url, "SO_RXQ_OVFL");
+    }
+    if (setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one) != 0) {
+      core::listen_failure(url, "SO_TIMESTAMPNS");
     }
     // Only this group's datagrams, not every group joined on the port.
-    setsockopt(fd_, IPPROTO_IP, IP_MULTICAST_ALL, &zero, sizeof zero);
+    setsockopt(fd, IPPROTO_IP, IP_MULTICAST_ALL, &zero, sizeof zero);
     // The kernel doubles what it is given (its bookkeeping); SO_RCVBUFFORCE
     // passes net.core.rmem_max where the process may (CAP_NET_ADMIN).
     const int half =
         static_cast<int>(std::min<std::int64_t>(options.rcvbuf_bytes / 2, INT32_MAX / 2));
-    forced_ = setsockopt(fd_, SOL_SOCKET, SO_RCVBUFFORCE, &half, sizeof half) == 0;
-    if (!forced_ && setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &half, sizeof half) != 0) {
-      fail(url, "SO_RCVBUF");
+    forced_ = setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &half, sizeof half) == 0;
+    if (!forced_ && setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &half, sizeof half) != 0) {
+      core::listen_failure(url, "SO_RCVBUF");
     }
     int granted = 0;
     socklen_t len = sizeof granted;
-    if (getsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &granted, &len) == 0) granted_ = granted;
-    sockaddr_in local{};
-    local.sin_family = AF_INET;
-    local.sin_addr.s_addr = htonl(INADDR_ANY);
-    local.sin_port = htons(options.address.port);
-    if (bind(fd_, reinterpret_cast<const sockaddr*>(&local), sizeof local) != 0) fail(url, "bind");
-    ip_mreq group{};
-    group.imr_multiaddr = options.address.group;
-    group.imr_interface.s_addr = htonl(INADDR_ANY);
-    if (setsockopt(fd_, IPPROTO_IP, IP_ADD_MEMBERSHIP, &group, sizeof group) != 0) {
-      fail(url, "joining the group");
-    }
-  } catch (...) {
-    close(fd_);
-    throw;
-  }
+    if (getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &granted, &len) == 0) granted_ = granted;
+  });
   slots_ = std::make_unique<Slots>();
   for (int i = 0; i < kBatch; ++i) {
     slots_->iov[i] = {slots_->buffers.data() + static_cast<std::size_t>(i) * kSlotBytes,
@@ -220,7 +196,7 @@ void Receiver::receive_batch(int n) noexcept {
         raise_to(kernel_drops_, drops);
       }
     }
-    if (d.recv_ns == 0) d.recv_ns = realtime_ns();
+    if (d.recv_ns == 0) d.recv_ns = clock_ns(CLOCK_REALTIME);
     if ((h.msg_flags & MSG_TRUNC) != 0) {
       truncated_.fetch_add(1, std::memory_order_relaxed);
       continue;

@@ -7,12 +7,26 @@
 // channels it is for fit one datagram. The counterpart of udpm_sender.hpp.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
 #include "exodaq/core/udpm_sender.hpp"
 
 namespace exodaq::core {
+
+// The error of every group receiver: "cannot listen on LCM 'URL': what: the
+// errno's text".
+[[noreturn]] void listen_failure(const std::string& url, const char* what);
+
+// A UDP socket on the group of `address`, as every receiver of the project
+// opens it (this class, `exodaq record`): SO_REUSEADDR (the port is shared
+// with other receivers, as LCM's sockets are), then `configure(fd)` for the
+// receiver's own options and filters (before the bind: nothing unfiltered is
+// ever queued), then bound to the group's port and joined to the group on the
+// default interface. Throws listen_failure()'s error; the socket is closed.
+int open_group_socket(const UdpmAddress& address, const std::string& url,
+                      const std::function<void(int fd)>& configure);
 
 class UdpmChannelReceiver {
  public:
