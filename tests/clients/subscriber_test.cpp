@@ -24,11 +24,6 @@ using exodaq::mono_now_ns;
 
 namespace {
 
-// CLOCK_REALTIME in us since the Unix epoch (LCM's utime).
-std::int64_t wall_now_us() {
-  return exodaq::clock_ns(CLOCK_REALTIME) / 1000;
-}
-
 template <typename T>
 std::vector<char> encode(const T& m) {
   std::vector<char> buf(static_cast<std::size_t>(m.getEncodedSize()));
