@@ -138,7 +138,7 @@ int main(int argc, char** argv) {
   // A recorder killed mid-write: the last event cut short.
   write_log(d / "cut_last_event.lcm", good(3));
   Buf cut = read_all(d / "cut_last_event.lcm");
-  cut.resize(cut.size() - 10);
+  cut.erase(cut.end() - 10, cut.end());  // not resize(size() - 10): see make_corpus.cpp
   write_bytes(d / "cut_last_event.lcm", cut);
 
   // Corrupted: bytes of the second event's header overwritten.

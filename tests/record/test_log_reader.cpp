@@ -216,7 +216,7 @@ TEST_F(LogReaderDamage, AnOverwrittenHeaderCostsItsEventNotTheOneBefore) {
 }
 
 TEST_F(LogReaderDamage, ACutLastEventIsOneEventLostAtTheEnd) {
-  const Read r = damaged([&](Bytes& b) { b.resize(b.size() - 10); });
+  const Read r = damaged([&](Bytes& b) { b.erase(b.end() - 10, b.end()); });
   expect_all_but(r, {199});
   ASSERT_EQ(r.damage.size(), 1u) << r.text;
   EXPECT_EQ(r.damage[0].from, at(199));
