@@ -118,7 +118,8 @@ StateCause degraded_cause(const WindowFacts& f) noexcept {
   return c;
 }
 
-// snprintf that never runs past `cap`: returns the new length.
+// snprintf that never runs past `cap`: returns the new length. A fixed text
+// goes through "%s" (clang's -Wformat-security in the fuzz build).
 template <typename... A>
 std::size_t put(char* out, std::size_t n, std::size_t cap, const char* format, A... args) {
   if (n + 1 >= cap) return n;
@@ -155,7 +156,8 @@ std::size_t describe_cause(const StateCause& c, std::string_view joint_name, cha
       break;
     }
     case StateReason::kForeignRun:
-      n = put(out, n, cap, "another run publishes on these channels (threshold: any status heard)");
+      n = put(out, n, cap, "%s",
+              "another run publishes on these channels (threshold: any status heard)");
       break;
     case StateReason::kJointFault:
       messages::write_joint_flag_names(static_cast<std::int32_t>(c.flags), flags, sizeof flags);
@@ -177,7 +179,7 @@ std::size_t describe_cause(const StateCause& c, std::string_view joint_name, cha
               ll(c.value), c.value == 1 ? "" : "s", window, ll(c.threshold));
       break;
     case StateReason::kClockHold:
-      n = put(out, n, cap, "clock unsynchronised under clock.require_sync: hold");
+      n = put(out, n, cap, "%s", "clock unsynchronised under clock.require_sync: hold");
       break;
     case StateReason::kRecovering: {
       const std::string_view was = reason_name(c.was);
@@ -193,7 +195,7 @@ std::size_t describe_cause(const StateCause& c, std::string_view joint_name, cha
     n = put(out, n, cap, "%s%.*s", sep, static_cast<int>(name.size()), name.data());
     sep = ", ";
   }
-  if (c.also != 0) n = put(out, n, cap, ")");
+  if (c.also != 0) n = put(out, n, cap, "%s", ")");
   return n;
 }
 
