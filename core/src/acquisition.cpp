@@ -377,6 +377,9 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   end.clock_steps = time_base_->clock_steps();
   end.foreign_run_id = foreign_run_id_.load(std::memory_order_relaxed);
   end.log_lines_dropped = log_lines_dropped_.load(std::memory_order_relaxed);
+  diagnostics_.clear();
+  source_->diagnose(diagnostics_);
+  end.diagnostics = &diagnostics_;
 
   const ServiceState previous = state_.load(std::memory_order_relaxed);
   const ServiceState next = status_.close_window(previous, end);
@@ -393,6 +396,7 @@ void Acquisition::finish_window(std::int64_t now_mono) noexcept {
   }
   last_status_seq_.store(end.seq, std::memory_order_release);
   publish_encoded(publisher_, status_.message(), status_.message().utime);
+  publish_encoded(publisher_, status_.source_message(), status_.source_message().utime);
   publisher_.notify();
 }
 

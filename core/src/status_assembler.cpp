@@ -26,6 +26,15 @@ StatusAssembler::StatusAssembler(const StatusSettings& settings, const Pipeline&
   for (auto [text, bytes] : file_fields()) text->reserve(bytes);
   use_files(pipeline.config().files, 0);
   status_.foreign_run_id = 0;
+  source_status_.run_id = settings.run_id;
+  source_status_.source = settings.source;
+  source_status_.state.reserve(drivers::SourceDiagnostics::kMaxStateBytes);
+  constexpr auto kCounters = static_cast<std::size_t>(drivers::SourceDiagnostics::kMaxCounters);
+  source_status_.counter_name.resize(kCounters);
+  source_status_.counter_value.resize(kCounters);
+  for (std::string& name : source_status_.counter_name)
+    name.reserve(drivers::SourceDiagnostics::kMaxNameBytes);
+  source_status_.counter_count = 0;
 }
 
 std::array<std::pair<std::string*, std::size_t>, 5> StatusAssembler::file_fields() noexcept {
@@ -59,6 +68,17 @@ void StatusAssembler::warm_up() {
   status_.message.clear();
   use_files(kept, status_.reloads);
   if (!fits) throw std::runtime_error("status message larger than a publisher slot");
+  // The largest source_status_t: every counter, every name and the state at their limits.
+  source_status_t& m = source_status_;
+  m.state.assign(drivers::SourceDiagnostics::kMaxStateBytes - 1, 'x');
+  for (std::string& name : m.counter_name)
+    name.assign(drivers::SourceDiagnostics::kMaxNameBytes, 'x');
+  m.counter_count = static_cast<std::int16_t>(m.counter_name.size());
+  const bool source_fits = m.encode(scratch.data(), 0, static_cast<int>(scratch.size())) >= 0;
+  m.state.clear();
+  for (std::string& name : m.counter_name) name.clear();
+  m.counter_count = 0;
+  if (!source_fits) throw std::runtime_error("source status message larger than a publisher slot");
 }
 
 void StatusAssembler::count_cycle(const CycleResult& result, bool present, bool clock_hold,
@@ -109,6 +129,7 @@ ServiceState StatusAssembler::close_window(ServiceState current, const WindowEnd
   fill_timing(end);
   fill_counters(end);
   fill_joints_and_text(next, end);
+  fill_source(end);
 
   period_.clear();
   lateness_.clear();
@@ -217,6 +238,27 @@ void StatusAssembler::fill_joints_and_text(ServiceState state, const WindowEnd& 
   n = append_service_text(text, n, cap, end);
   append_publish_text(text, n, cap, state, end);
   s.message.assign(text);
+}
+
+void StatusAssembler::fill_source(const WindowEnd& end) noexcept {
+  source_status_t& m = source_status_;
+  m.utime = status_.utime;
+  m.mono_ns = status_.mono_ns;
+  m.seq = status_.seq;
+  m.counter_count = 0;
+  m.state.clear();
+  if (end.diagnostics == nullptr) return;
+  const drivers::SourceDiagnostics& d = *end.diagnostics;
+  // Within the capacity reserved at construction: nothing reallocates.
+  m.state.assign(d.state());
+  std::size_t i = 0;
+  for (const drivers::SourceCounter& c : d.counters()) {
+    if (i == m.counter_name.size()) break;
+    m.counter_name[i].assign(c.name);
+    m.counter_value[i] = c.value;
+    ++i;
+  }
+  m.counter_count = static_cast<std::int16_t>(i);
 }
 
 // A new segment in the window, a reload waiting for a restart, log lines lost.

@@ -923,6 +923,19 @@ void write_lateness_log(const Acquisition& acq, const std::string& path) {
   }
 }
 
+// The source's own state and its counters that are not zero, as the final
+// source_status_t carried them: "source socketcan (can0 open): sync_sent=5000 ...".
+void log_source_diagnostics(const Acquisition& acq) {
+  const drivers::SourceDiagnostics& d = acq.source_diagnostics();
+  std::string counters;
+  for (const drivers::SourceCounter& c : d.counters()) {
+    if (c.value == 0) continue;
+    counters += fmt::format(" {}={}", c.name, c.value);
+  }
+  spdlog::info("source {} ({}):{}", acq.source_name(), d.state(),
+               counters.empty() ? std::string(" no counter above zero") : counters);
+}
+
 // Stops the loop (its final status published), logs what is left (the
 // overruns not yet reported too), exits the logger.
 void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& logging,
@@ -937,6 +950,7 @@ void shut_down(Acquisition& acq, const DaemonOptions& options, const Logging& lo
     spdlog::warn("{} loop events were not logged: the event ring was full", acq.events_dropped());
   }
   if (!options.lateness_log.empty()) write_lateness_log(acq, options.lateness_log);
+  log_source_diagnostics(acq);
   const auto source = acq.source_counters();  // as of the final status window
   spdlog::info(
       "stopped after {} cycles ({} overruns, {} publish failures, {} messages published; {} "

@@ -1,5 +1,8 @@
 #include "exodaq/drivers/board_decoder.hpp"
 
+#include <string_view>
+#include <tuple>
+
 namespace exodaq::drivers {
 namespace {
 
@@ -27,6 +30,29 @@ void merge_superseded(const EncoderSample& older, EncoderSample& newer) noexcept
 
 BoardDecoder::BoardDecoder(const BoardDecoderConfig& config) noexcept : config_(config) {
   reset();
+}
+
+void BoardDecoder::diagnose(SourceDiagnostics& out) const noexcept {
+  // By can::Reject value; index 0 (kNone) is never counted.
+  static constexpr std::array<std::string_view, 6> kRejected = {"",
+                                                                "rejected_unknown_id",
+                                                                "rejected_wrong_dlc",
+                                                                "rejected_rtr",
+                                                                "rejected_extended_id",
+                                                                "rejected_can_fd"};
+  static_assert(kRejected.size() == std::tuple_size_v<decltype(stats_.rejected)>);
+  out.add("samples", stats_.samples);
+  out.add("partial_samples", stats_.partial_samples);
+  out.add("lost_cycles", stats_.lost_cycles);
+  out.add("resyncs", stats_.resyncs);
+  out.add("sync_frames", stats_.sync_frames);
+  out.add("index_frames", stats_.index_frames);
+  out.add("heartbeats", stats_.heartbeats);
+  out.add("queue_overflows", stats_.queue_overflows);
+  out.add("superseded_samples", stats_.source.superseded_samples);
+  for (std::size_t r = 1; r < kRejected.size(); ++r) out.add(kRejected[r], stats_.rejected[r]);
+  out.add("board_state", stats_.board_state);
+  out.add("protocol_version", stats_.protocol_version);
 }
 
 void BoardDecoder::reset() noexcept {

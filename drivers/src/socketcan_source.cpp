@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
@@ -44,6 +45,30 @@ void SocketCanSource::start() {
   }
   throw std::runtime_error("socketcan: cannot open " + config_.port.interface + ": " +
                            std::strerror(-r));
+}
+
+void SocketCanSource::diagnose(SourceDiagnostics& out) const noexcept {
+  const SocketCanDetail d = detail();
+  out.add("sync_sent", d.sync_sent);
+  out.add("sync_send_failures", d.sync_send_failures);
+  out.add("late_syncs", d.late_syncs);
+  out.add("partial_flushes", d.partial_flushes);
+  out.add("unstamped_frames", d.unstamped_frames);
+  out.add("interface_losses", d.interface_losses);
+  out.add("reopen_attempts", d.reopen_attempts);
+  out.add("reopens", d.reopens);
+  out.add("receive_errors", d.receive_errors);
+  decoder_.diagnose(out);
+  char text[SourceDiagnostics::kMaxStateBytes];
+  const char* err = d.last_errno != 0 ? strerrorname_np(d.last_errno) : nullptr;
+  if (d.open) {
+    std::snprintf(text, sizeof text, "%s open%s%s", config_.port.interface.c_str(),
+                  err != nullptr ? ", last error " : "", err != nullptr ? err : "");
+  } else {
+    std::snprintf(text, sizeof text, "%s down: %s", config_.port.interface.c_str(),
+                  err != nullptr ? err : "not opened");
+  }
+  out.set_state(text);
 }
 
 void SocketCanSource::stop() noexcept {

@@ -1,5 +1,6 @@
 #include "exodaq/messages/csv.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -238,6 +239,31 @@ struct Columns<status_t> {
     each(m.lost_count_events, out, kNum);
     each(m.stale_events, out, kNum);
     each(m.out_of_range_events, out, kNum);
+  }
+};
+
+// The backend's counters in one text column, "name=value" separated by
+// spaces in the message's order (their set is the backend's, not fixed).
+template <>
+struct Columns<source_status_t> {
+  static constexpr const char* kTextColumns[] = {"source", "state", "counters"};
+
+  static void header(std::vector<std::string>& h, const JointNames&) {
+    for (const char* c : kTextColumns) h.emplace_back(c);
+  }
+
+  static void values(const source_status_t& m, std::vector<std::string>& out) {
+    out.push_back(m.source);
+    out.push_back(m.state);
+    std::string counters;
+    const auto n =
+        std::min<std::size_t>(static_cast<std::size_t>(std::max<int>(m.counter_count, 0)),
+                              std::min(m.counter_name.size(), m.counter_value.size()));
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i > 0) counters += ' ';
+      counters += m.counter_name[i] + '=' + num(m.counter_value[i]);
+    }
+    out.push_back(std::move(counters));
   }
 };
 

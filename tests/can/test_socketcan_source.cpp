@@ -325,6 +325,16 @@ TEST(SocketCanSource, InterfaceDownDegradesThenRecovers) {
   EXPECT_EQ(f.port->open_calls - opens, 2);  // at +1 s and +2 s
   EXPECT_EQ(f.source->detail().reopen_attempts, 2);
   EXPECT_EQ(f.source->detail().last_errno, ENETDOWN);
+  // What source_status_t and the daemon's log carry.
+  SourceDiagnostics down;
+  f.source->diagnose(down);
+  EXPECT_EQ(down.state(), f.source->config().port.interface + " down: ENETDOWN");
+  ASSERT_NE(down.find("interface_losses"), nullptr);
+  EXPECT_EQ(down.find("interface_losses")->value, 1);
+  EXPECT_EQ(down.find("reopen_attempts")->value, 2);
+  EXPECT_EQ(down.find("reopens")->value, 0);
+  EXPECT_EQ(down.find("samples")->value, 10);  // the decoder's, after the source's own
+  EXPECT_EQ(down.dropped(), 0);
 
   // ip link set vcan0 up: recovered at the next attempt (≤ 1 s later).
   f.port->bring_up();
@@ -341,6 +351,10 @@ TEST(SocketCanSource, InterfaceDownDegradesThenRecovers) {
   EXPECT_EQ(f.source->stats().bus_state, BusState::kActive);
   EXPECT_EQ(f.sample.flags & sample_flag::kBusError, 0U);
   for (int i = 0; i < 10; ++i) ASSERT_EQ(f.cycle(++k), ReadStatus::kSample);
+  SourceDiagnostics up;
+  f.source->diagnose(up);
+  EXPECT_EQ(up.state(), f.source->config().port.interface + " open, last error ENETDOWN");
+  EXPECT_EQ(up.find("reopens")->value, 1);
 }
 
 TEST(SocketCanSource, InterfaceRemovedAndRecreated) {
@@ -669,6 +683,7 @@ TEST(SocketCanSource, ReadAllocatesNothing) {
   f.source->start();
   std::int64_t k = 0;
   for (; k < 5; ++k) f.cycle(k);  // warm-up
+  SourceDiagnostics diagnostics;
   test::AllocationScope scope;
   for (; k < 2000; ++k) {
     if (k == 100) {
@@ -686,6 +701,10 @@ TEST(SocketCanSource, ReadAllocatesNothing) {
     }
     if (k == 1500) f.port->pending_drops = 3;
     f.cycle(k);
+    if (k % 100 == 0) {  // a status window
+      diagnostics.clear();
+      f.source->diagnose(diagnostics);
+    }
   }
   EXPECT_EQ(scope.count(), 0U);
   EXPECT_EQ(f.source->detail().reopens, 1);

@@ -51,7 +51,7 @@ set(palm_velocity_line
 set(palm_velocity_lcm "package exodaq;\nstruct palm_velocity_t\n{\n  int64_t utime;\n}\n")
 
 check(real_list ${list_file} ${lcm_dir}
-  "ok: joint_state_t;palm_pose_t;encoder_raw_t;status_t;homing_t")
+  "ok: joint_state_t;palm_pose_t;encoder_raw_t;status_t;homing_t;source_status_t ")
 
 # A .lcm file the list does not name.
 lcm_copy(${WORK}/extra_lcm)
@@ -64,7 +64,7 @@ check(listed_without_lcm ${WORK}/extra_line.def ${lcm_dir} "lists palm_velocity_
 
 # Both: accepted, the new type last.
 check(both ${WORK}/extra_line.def ${WORK}/extra_lcm
-  "ok: joint_state_t;palm_pose_t;encoder_raw_t;status_t;homing_t;palm_velocity_t")
+  "ok: joint_state_t;palm_pose_t;encoder_raw_t;status_t;homing_t;source_status_t;palm_velocity_t")
 
 # A line of another shape (no per_cycle).
 file(WRITE ${WORK}/malformed.def

@@ -55,6 +55,13 @@ class RampSource final : public drivers::EncoderSource {
     return drivers::ReadStatus::kSample;
   }
   drivers::SourceStats stats() const noexcept override { return stats_; }
+  // Names and a state longer than std::string's in-place buffer: copying
+  // them into source_status_t must not allocate either.
+  void diagnose(drivers::SourceDiagnostics& out) const noexcept override {
+    out.add("ramp_samples_delivered", stats_.frames);
+    out.add("ramp_samples_dropped", stats_.missing_samples);
+    out.set_state("a ramp on every channel, one sample dropped every so often");
+  }
 
  private:
   drivers::SourceStats stats_;
@@ -388,7 +395,12 @@ TEST(Acquisition, TheStatusSaysWhatTheLogLostAndThatARestartIsPending) {
   acq->stage_reload(std::move(next), cfg.clock);
   run_cycles(*acq, 100, 200);
   EXPECT_EQ(acq->last_status_seq(), 199);
-  const auto st = decode<exodaq::status_t>(sink->kept.back().second);
+  // The window's status_t; its source_status_t follows it.
+  ASSERT_GE(sink->kept.size(), 2U);
+  const auto& [last_channel, last_bytes] = sink->kept[sink->kept.size() - 2];
+  ASSERT_EQ(last_channel, exodaq::messages::Kind::kStatus);
+  EXPECT_EQ(sink->kept.back().first, exodaq::messages::Kind::kSourceStatus);
+  const auto st = decode<exodaq::status_t>(last_bytes);
   ASSERT_EQ(st.seq, 199);
   EXPECT_EQ(st.config_sha256, "");
   EXPECT_NE(st.message.find("; restart pending: config not in effect as a whole; 1234 log lines "
@@ -452,6 +464,38 @@ TEST(Acquisition, ACycleAllocatesNothingOverTenThousandCycles) {
   EXPECT_EQ(scope.count(), 0u);
   acq->publisher().drain();
   EXPECT_EQ(sink->counts[0], 12'001);
+  // One source_status_t beside each status_t, as the ramp's diagnose() filled it.
+  const auto n = [&](exodaq::messages::Kind k) {
+    return sink->counts[static_cast<std::size_t>(k)];
+  };
+  EXPECT_GT(n(exodaq::messages::Kind::kStatus), 0);
+  EXPECT_EQ(n(exodaq::messages::Kind::kSourceStatus), n(exodaq::messages::Kind::kStatus));
+  // The next windows kept: the last source_status_t is the ramp's, with its status_t's seq.
+  sink->keep = true;
+  for (int k = 12'001; k <= 12'300; ++k) acq->run_cycle(t0 + k * kMs, t0 + k * kMs + 5'000);
+  acq->publisher().drain();
+  std::optional<exodaq::status_t> status;
+  std::optional<exodaq::source_status_t> source;
+  for (const auto& [channel, bytes] : sink->kept) {
+    if (channel == exodaq::messages::Kind::kStatus) status = decode<exodaq::status_t>(bytes);
+    if (channel == exodaq::messages::Kind::kSourceStatus)
+      source = decode<exodaq::source_status_t>(bytes);
+  }
+  ASSERT_TRUE(status && source);
+  EXPECT_EQ(source->seq, status->seq);
+  EXPECT_EQ(source->utime, status->utime);
+  EXPECT_EQ(source->run_id, status->run_id);
+  EXPECT_EQ(source->source, "ramp");
+  EXPECT_EQ(source->state, "a ramp on every channel, one sample dropped every so often");
+  ASSERT_EQ(source->counter_count, 2);
+  EXPECT_EQ(source->counter_name[0], "ramp_samples_delivered");
+  EXPECT_EQ(source->counter_name[1], "ramp_samples_dropped");
+  EXPECT_EQ(source->counter_value[1], status->missing_samples);
+  EXPECT_EQ(source->counter_value[0] + source->counter_value[1], status->seq + 1);
+  // What the daemon's last log line reads.
+  const drivers::SourceCounter* dropped = acq->source_diagnostics().find("ramp_samples_dropped");
+  ASSERT_NE(dropped, nullptr);
+  EXPECT_EQ(dropped->value, source->counter_value[1]);
 }
 
 TEST(Acquisition, ThreadedLoopAllocatesNothingAfterStartUp) {

@@ -3,6 +3,8 @@
 // counters and flags.
 #include <gtest/gtest.h>
 
+#include <string>
+
 #include "exodaq/drivers/board_decoder.hpp"
 
 namespace can = exodaq::drivers::can;
@@ -11,6 +13,7 @@ using exodaq::drivers::BoardDecoder;
 using exodaq::drivers::BoardDecoderConfig;
 using exodaq::drivers::BusState;
 using exodaq::drivers::EncoderSample;
+using exodaq::drivers::SourceDiagnostics;
 
 namespace {
 
@@ -340,6 +343,34 @@ TEST_F(Decoder, BadFramesAreCountedByReasonAndChangeNothing) {
   EXPECT_EQ(d.rejected[static_cast<std::size_t>(can::Reject::kFd)], 1);
   EXPECT_EQ(d.sync_frames, 1);
   EXPECT_EQ(d.source.seq_gaps, 0);
+  // The same counts by name, as source_status_t carries them.
+  SourceDiagnostics named;
+  dec.diagnose(named);
+  for (const char* name : {"rejected_unknown_id", "rejected_wrong_dlc", "rejected_rtr",
+                           "rejected_extended_id", "rejected_can_fd", "sync_frames"}) {
+    ASSERT_NE(named.find(name), nullptr) << name;
+    EXPECT_EQ(named.find(name)->value, 1) << name;
+  }
+  EXPECT_EQ(named.find("samples")->value, 2);
+  EXPECT_EQ(named.find("resyncs")->value, 0);
+}
+
+TEST(SourceDiagnostics, HoldsItsCapacityCountsTheRestAndCutsTheState) {
+  SourceDiagnostics d;
+  for (int i = 0; i < SourceDiagnostics::kMaxCounters + 3; ++i) d.add("counter", i);
+  EXPECT_EQ(d.counters().size(), static_cast<std::size_t>(SourceDiagnostics::kMaxCounters));
+  EXPECT_EQ(d.dropped(), 3);
+  EXPECT_EQ(d.counters().back().value, SourceDiagnostics::kMaxCounters - 1);
+  d.set_state(std::string(200, 's'));
+  EXPECT_EQ(d.state().size(), static_cast<std::size_t>(SourceDiagnostics::kMaxStateBytes - 1));
+  d.add(std::string_view("a_name_longer_than_the_twenty_four_bytes_allowed"), 1);
+  d.clear();
+  EXPECT_TRUE(d.counters().empty());
+  EXPECT_TRUE(d.state().empty());
+  EXPECT_EQ(d.dropped(), 0);
+  d.add("a_name_longer_than_the_twenty_four_bytes_allowed", 7);
+  EXPECT_EQ(d.counters()[0].name, "a_name_longer_than_the_t");
+  EXPECT_EQ(d.find("missing"), nullptr);
 }
 
 TEST_F(Decoder, ResyncAfterSilence) {

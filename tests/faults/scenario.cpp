@@ -39,6 +39,7 @@ class KeepingSink final : public core::MessageSink {
         }
         case exodaq::messages::Kind::kEncoderRaw:
         case exodaq::messages::Kind::kHoming:
+        case exodaq::messages::Kind::kSourceStatus:
           break;
       }
     } catch (...) {

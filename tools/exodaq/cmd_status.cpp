@@ -1,11 +1,13 @@
 // `exodaq status`: waits for one EXO_STATUS message and prints it for people
-// (or, with --json, as one JSON object in the CSV schema's names). Exit 0 when
-// one arrived, 1 when none did within --timeout.
+// (or, with --json, as one JSON object in the CSV schema's names), with the
+// source's own counters from the EXO_SOURCE_STATUS of the same window. Exit 0
+// when a status arrived, 1 when none did within --timeout.
 #include <algorithm>
 #include <cstdio>
 #include <ctime>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "clock_text.hpp"
 #include "command.hpp"
@@ -96,6 +98,24 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
   }
 }
 
+// The backend's state and counters, two counters to a line; "-" when no
+// source_status_t of this window arrived (a daemon older than the message).
+void print_source(const source_status_t* m) {
+  if (m == nullptr) {
+    std::printf("backend  - (no %s message with this seq)\n",
+                std::string(messages::base_channel(messages::Kind::kSourceStatus)).c_str());
+    return;
+  }
+  std::printf("backend  %s\n", m->state.c_str());
+  const auto n = std::min<std::size_t>(static_cast<std::size_t>(std::max<int>(m->counter_count, 0)),
+                                       m->counter_name.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    std::printf("%s%-22s %12lld", i % 2 == 0 ? "         " : "   ", m->counter_name[i].c_str(),
+                static_cast<long long>(m->counter_value[i]));
+    if (i % 2 == 1 || i + 1 == n) std::printf("\n");
+  }
+}
+
 // The JSON value of a status column whose number stands for something (a
 // state, a name, a flag set, an unknown), or nothing: the number as it is.
 std::optional<std::string> named_json_value(const status_t& s, const std::string& column,
@@ -120,7 +140,7 @@ std::optional<std::string> named_json_value(const status_t& s, const std::string
 // One JSON object: the channel, then every column of the CSV schema under
 // its name: numbers as numbers, text as strings, states and flags by name,
 // booleans as booleans, unknown and none as null (docs/messages.md, "JSON").
-void print_json(const std::string& channel, const status_t& s) {
+void print_json(const std::string& channel, const status_t& s, const source_status_t* source) {
   const messages::Message m{s};
   const auto joints = messages::csv::joints_of(m);
   const auto names = messages::csv::header(messages::Kind::kStatus, joints);
@@ -138,6 +158,20 @@ void print_json(const std::string& channel, const status_t& s) {
     }
     out += ",\n  " + json_string(names[i]) + ": " + value;
   }
+  // The source's own state and counters (source_status_t), null when none came.
+  out += ",\n  \"source_status\": ";
+  if (source == nullptr) {
+    out += "null";
+  } else {
+    out += "{\"state\": " + json_string(source->state) + ", \"counters\": {";
+    for (std::size_t i = 0; i < static_cast<std::size_t>(std::max<int>(source->counter_count, 0)) &&
+                            i < source->counter_name.size();
+         ++i) {
+      out += (i ? ", " : "") + json_string(source->counter_name[i]) + ": " +
+             std::to_string(source->counter_value[i]);
+    }
+    out += "}}";
+  }
   std::printf("%s\n}\n", out.c_str());
 }
 
@@ -152,6 +186,15 @@ int run_status(StatusOptions opt) {
   subscriber.subscribe(channel, messages::Kind::kStatus, [&](const messages::Received& r) {
     if (!got) got = r;
   });
+  // The source_status_t of the same window follows its status_t at once.
+  std::vector<source_status_t> sources;
+  const std::string source_channel =
+      messages::channel_name(opt.rig.prefix, messages::Kind::kSourceStatus);
+  subscriber.subscribe(source_channel, messages::Kind::kSourceStatus,
+                       [&](const messages::Received& r) {
+                         if (sources.size() < 64)
+                           sources.push_back(std::get<source_status_t>(r.msg));
+                       });
   subscriber.on_mixed_runs(
       [](const messages::RunMix& mix) { print_error("WARNING: " + messages::describe(mix)); });
   int64_t end = mono_now_ns() + static_cast<int64_t>(opt.timeout * 1e9);
@@ -176,10 +219,16 @@ int run_status(StatusOptions opt) {
                 " s (is exodaqd running, with this prefix and URL?)");
     return kExitFailure;
   }
+  const auto& status = std::get<status_t>(got->msg);
+  const source_status_t* source = nullptr;
+  for (const source_status_t& m : sources) {
+    if (m.run_id == status.run_id && m.seq == status.seq) source = &m;
+  }
   if (opt.json) {
-    print_json(got->channel, std::get<status_t>(got->msg));
+    print_json(got->channel, status, source);
   } else {
-    print_status(got->channel, std::get<status_t>(got->msg), got->recv_utime, opt);
+    print_status(got->channel, status, got->recv_utime, opt);
+    print_source(source);
   }
   return kExitOk;
 }

@@ -254,6 +254,14 @@ std::int64_t ReplaySource::sample_count() const noexcept {
   return state_ ? state_->first.summary.samples : 0;
 }
 
+void ReplaySource::diagnose(SourceDiagnostics& out) const noexcept {
+  out.add("samples_delivered", position_);
+  out.add("samples_recorded", sample_count());
+  out.add("read_ahead_capacity", static_cast<std::int64_t>(buffer_capacity()));
+  out.add("read_ahead_waits", buffer_waits());
+  out.set_state(position_ < sample_count() ? "playing" : "at the end");
+}
+
 std::size_t ReplaySource::buffer_capacity() const noexcept {
   return state_ ? state_->ring.capacity() : 0;
 }

@@ -134,6 +134,13 @@ ReadStatus SimSource::read_free_running(const CycleTime& time, EncoderSample& ou
   return ReadStatus::kNoSample;
 }
 
+void SimSource::diagnose(SourceDiagnostics& out) const noexcept {
+  out.add("board_cycles", cycle_);
+  decoder_.diagnose(out);
+  out.set_state(options_.board_clock.free_running ? "simulated board, free-running clock"
+                                                  : "simulated board, aligned clock");
+}
+
 int SimSource::backlog() const noexcept {
   if (!options_.board_clock.free_running) return 0;
   const bool more = (pending_n_ > 0 && pending_[0].mono_ns <= last_now_ns_) ||

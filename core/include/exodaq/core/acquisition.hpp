@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -137,6 +138,10 @@ class Acquisition {
     drivers::BusState bus_state = drivers::BusState::kUnknown;
   };
   SourceCounters source_counters() const noexcept;
+  // The source's own counters and state as of the last status window (what
+  // source_status_t carried). Read it after stop(): the loop fills it.
+  const drivers::SourceDiagnostics& source_diagnostics() const noexcept { return diagnostics_; }
+  std::string_view source_name() const noexcept { return source_->name(); }
   // Whether the loop thread got the scheduling/locking it asked for.
   const std::string& realtime_report() const noexcept { return realtime_report_; }
   // Something asked for (SCHED_FIFO, CPU pinning, mlockall) was refused: the
@@ -188,6 +193,7 @@ class Acquisition {
 
   // loop-thread state
   drivers::EncoderSample sample_;
+  drivers::SourceDiagnostics diagnostics_;  // filled at each status window
   CycleResult result_;
   std::int64_t seq_ = 0;
   std::int64_t last_emitted_mono_ns_ = 0;

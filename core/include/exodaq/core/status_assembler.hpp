@@ -13,6 +13,8 @@
 #include "exodaq/core/pipeline.hpp"
 #include "exodaq/core/publisher.hpp"
 #include "exodaq/drivers/encoder_sample.hpp"
+#include "exodaq/drivers/source_diagnostics.hpp"
+#include "exodaq/source_status_t.hpp"
 #include "exodaq/status_t.hpp"
 
 namespace exodaq::core {
@@ -39,6 +41,9 @@ struct WindowEnd {
   std::int64_t clock_steps = 0;
   std::int64_t foreign_run_id = 0;     // another run heard on our status channel (0: none)
   std::int64_t log_lines_dropped = 0;  // the daemon's log output lost them (since start)
+  // The source's own counters and state (nullptr: none; source_status_t then
+  // carries the source's name only).
+  const drivers::SourceDiagnostics* diagnostics = nullptr;
 };
 
 class StatusAssembler {
@@ -66,6 +71,8 @@ class StatusAssembler {
   // next window starts empty.
   ServiceState close_window(ServiceState current, const WindowEnd& end) noexcept;
   const exodaq::status_t& message() const noexcept { return status_; }
+  // The same window's source_status_t (WindowEnd::diagnostics), assembled with it.
+  const exodaq::source_status_t& source_message() const noexcept { return source_status_; }
   // Why the last window's state was chosen, and the joints homed at its end.
   const StateCause& cause() const noexcept { return cause_; }
   int homed() const noexcept { return homed_; }
@@ -76,6 +83,7 @@ class StatusAssembler {
   void fill_timing(const WindowEnd& end) noexcept;
   void fill_counters(const WindowEnd& end) noexcept;
   void fill_joints_and_text(ServiceState state, const WindowEnd& end) noexcept;
+  void fill_source(const WindowEnd& end) noexcept;
   int append_publish_text(char* text, int n, int cap, ServiceState state,
                           const WindowEnd& end) const noexcept;
   int append_service_text(char* text, int n, int cap, const WindowEnd& end) const noexcept;
@@ -84,6 +92,9 @@ class StatusAssembler {
   const ClockShared& clock_;
   ServiceStateMachine state_machine_;
   exodaq::status_t status_{};
+  // Its arrays hold SourceDiagnostics::kMaxCounters entries, each name with
+  // room for kMaxNameBytes: counter_count says how many are in use.
+  exodaq::source_status_t source_status_{};
   TimingWindow period_;
   TimingWindow lateness_;
   TimingWindow work_;

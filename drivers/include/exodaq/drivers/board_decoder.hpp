@@ -12,6 +12,7 @@
 
 #include "exodaq/drivers/can_codec.hpp"
 #include "exodaq/drivers/encoder_sample.hpp"
+#include "exodaq/drivers/source_diagnostics.hpp"
 
 namespace exodaq::drivers {
 
@@ -98,6 +99,8 @@ class BoardDecoder {
   void add_rx_overflows(std::int64_t dropped) noexcept;
 
   const BoardDecoderStats& detail() const noexcept { return stats_; }
+  // detail() as named counters (a source's diagnose() adds them to its own).
+  void diagnose(SourceDiagnostics& out) const noexcept;
   SourceStats stats() const noexcept { return stats_.source; }
   const BoardDecoderConfig& config() const noexcept { return config_; }
 

@@ -9,6 +9,7 @@
 #include <string_view>
 
 #include "exodaq/drivers/encoder_sample.hpp"
+#include "exodaq/drivers/source_diagnostics.hpp"
 
 namespace exodaq::drivers {
 
@@ -96,6 +97,11 @@ class EncoderSource {
   virtual const JointResumeSet* resume_state() const noexcept { return nullptr; }
 
   virtual SourceStats stats() const noexcept = 0;
+
+  // The backend's own counters and state (source_diagnostics.hpp) into `out`,
+  // which the caller has cleared. Loop thread, once per status window:
+  // allocation-free. The counters' names are the same on every call.
+  virtual void diagnose(SourceDiagnostics& out) const noexcept { (void)out; }
 
   // Closes devices; called after the loop has stopped.
   virtual void stop() noexcept {}

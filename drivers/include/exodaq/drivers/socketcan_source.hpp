@@ -70,6 +70,9 @@ class SocketCanSource final : public EncoderSource {
     s.late_syncs = detail_.late_syncs;
     return s;
   }
+  // detail() and the decoder's counters; the state: "can0 open" or
+  // "can0 down: ENODEV".
+  void diagnose(SourceDiagnostics& out) const noexcept override;
   bool free_running() const noexcept override { return !config_.sync_master; }
   int backlog() const noexcept override;
   void stop() noexcept override;

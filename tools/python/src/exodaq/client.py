@@ -22,7 +22,8 @@ from .udpm import DEFAULT_URL, Receiver, take
 
 Message = collections.namedtuple("Message", "channel kind msg")
 Message.__doc__ = """A received message: its channel, its kind's short name
-("joint_state", "palm_pose", "encoder_raw", "status", "homing") and the decoded object
+("joint_state", "palm_pose", "encoder_raw", "status", "homing", "source_status") and the
+decoded object
 (exodaq.joint_state_t, ...; every array field a list)."""
 
 DEFAULT_KINDS = ("joint_state", "palm_pose", "status")
@@ -250,8 +251,12 @@ def _summary(channel, msg):
     if t == "homing_t":
         return "%s seq %d changed %d homing %s index_count %s" % (
             channel, msg.seq, msg.changed, list(msg.homing), list(msg.index_count))
-    return "%s seq %d rig %r %s %r" % (channel, msg.seq, msg.rig, names.state_name(msg.state),
-                                       msg.message)
+    if t == "status_t":
+        return "%s seq %d rig %r %s %r" % (channel, msg.seq, msg.rig,
+                                           names.state_name(msg.state), msg.message)
+    # Any other type of the list: its fields as they are.
+    fields = " ".join("%s %r" % (n, getattr(msg, n)) for n in msg.__slots__ if n != "seq")
+    return "%s %s seq %d %s" % (channel, t, msg.seq, fields)
 
 
 def main(argv=None):

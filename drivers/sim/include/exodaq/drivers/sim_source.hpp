@@ -40,6 +40,9 @@ class SimSource final : public EncoderSource {
   // Allocation-free; blocks only in a scripted `stall` fault.
   ReadStatus read(const CycleTime& time, EncoderSample& out) noexcept override;
   SourceStats stats() const noexcept override { return decoder_.stats(); }
+  // The decoder's counters and the board cycles simulated; the state names the
+  // board clock ("simulated board, aligned clock").
+  void diagnose(SourceDiagnostics& out) const noexcept override;
   bool free_running() const noexcept override { return options_.board_clock.free_running; }
   int backlog() const noexcept override;
 
