@@ -361,6 +361,11 @@ class Test:
         # The sim's config says clock.require_sync: ignore: never shouted (issue 16.9).
         clock = self.driver.execute_script("return document.getElementById('clock').textContent")
         check(clock != "NOT SYNCHRONISED", "clock badge %r under require_sync: ignore" % clock)
+        # The backend line: the sim's state and its non-zero counters (source_status_t).
+        backend = self.driver.execute_script(
+            "return document.getElementById('backend').textContent")
+        check(backend.startswith("simulated board, aligned clock, board cycles "),
+              "backend line %r" % backend)
         # Decimation: the page gets display-rate frames, each many 1 kHz cycles apart.
         frames = last[1] - first[1]
         check(frames > 0, "no frame reached the page in 8 s of the rig's time")

@@ -211,6 +211,38 @@ TEST(ViewScene, ClockWithoutAnEstimateUnderRequireSyncIgnore) {
       << ev2[0].json;
 }
 
+// The backend's state and counters (source_status_t) ride on the status
+// event of the same run; another run's are not shown as this one's.
+TEST(ViewScene, TheStatusCarriesTheBackendOfTheSameRun) {
+  ViewScene scene(macaque(), SceneOptions{});
+  status_t s{};
+  s.run_id = 77;
+  scene.on_status(s, kSecond);
+  auto ev = named(scene.tick(kSecond), "status");
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_NE(ev[0].json.find("\"backend\":null"), std::string::npos) << ev[0].json;
+
+  source_status_t b{};
+  b.run_id = 77;
+  b.state = "can0 down: ENODEV";
+  b.counter_count = 2;
+  b.counter_name = {"interface_losses", "reopens"};
+  b.counter_value = {3, 2};
+  scene.on_source_status(b);
+  ev = named(scene.tick(kSecond + kMs), "status");
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_NE(ev[0].json.find("\"backend\":{\"state\":\"can0 down: ENODEV\",\"counters\":{"
+                            "\"interface_losses\":3,\"reopens\":2}}"),
+            std::string::npos)
+      << ev[0].json;
+
+  b.run_id = 78;  // another daemon's
+  scene.on_source_status(b);
+  ev = named(scene.tick(kSecond + 2 * kMs), "status");
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_NE(ev[0].json.find("\"backend\":null"), std::string::npos) << ev[0].json;
+}
+
 TEST(ViewScene, TrailKeepsTheLastSecondsAndRestartsWithARun) {
   SceneOptions o;
   o.trail_s = 2.0;

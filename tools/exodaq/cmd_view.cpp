@@ -128,6 +128,10 @@ int serve(const ViewOptions& o, view::ViewScene& scene, const view::SceneOptions
                        messages::Kind::kStatus, [&](const messages::Received& r) {
                          scene.on_status(std::get<status_t>(r.msg), mono_now_ns());
                        });
+  subscriber.subscribe(messages::channel_name(so.prefix, messages::Kind::kSourceStatus),
+                       messages::Kind::kSourceStatus, [&](const messages::Received& r) {
+                         scene.on_source_status(std::get<source_status_t>(r.msg));
+                       });
 
   view::HttpOptions ho;
   ho.bind = o.bind;

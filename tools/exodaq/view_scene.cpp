@@ -126,6 +126,11 @@ void ViewScene::on_status(const status_t& m, int64_t now_ns) {
   status_dirty_ = true;
 }
 
+void ViewScene::on_source_status(const source_status_t& m) {
+  source_status_ = m;
+  status_dirty_ = status_.has_value();
+}
+
 StreamState ViewScene::stream_state(int64_t now_ns) const {
   // The service said it stops, and no joint state came after that.
   const bool stopping = status_ && status_->state == status_t::STATE_STOPPING &&
@@ -300,6 +305,18 @@ std::string ViewScene::status_json(const status_t& s) const {
   j.field("missing_samples", s.missing_samples).field("seq_gaps", s.seq_gaps);
   j.field("bus_errors", s.bus_errors);
   j.end_object();
+  // The backend's own state and counters, from the source_status_t of the same run.
+  j.key("backend");
+  if (source_status_ && source_status_->run_id == s.run_id) {
+    const source_status_t& b = *source_status_;
+    j.begin_object().field("state", b.state).key("counters").begin_object();
+    const auto n = std::min<std::size_t>(static_cast<std::size_t>(std::max<int>(b.counter_count, 0)),
+                                         std::min(b.counter_name.size(), b.counter_value.size()));
+    for (std::size_t i = 0; i < n; ++i) j.field(b.counter_name[i], b.counter_value[i]);
+    j.end_object().end_object();
+  } else {
+    j.null();
+  }
   j.key("homing").begin_array();
   for (const int8_t h : s.homing) j.value(messages::homing_name(h));
   j.end_array();

@@ -20,6 +20,7 @@
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/kinematics/chain.hpp"
 #include "exodaq/palm_pose_t.hpp"
+#include "exodaq/source_status_t.hpp"
 #include "exodaq/status_t.hpp"
 #include "rate_meter.hpp"
 
@@ -72,6 +73,8 @@ class ViewScene {
   void on_joint_state(const joint_state_t& m, int64_t now_ns);
   void on_palm_pose(const palm_pose_t& m, int64_t now_ns);
   void on_status(const status_t& m, int64_t now_ns);
+  // The backend's state and counters: part of the next status event.
+  void on_source_status(const source_status_t& m);
 
   // Events since the last tick: a frame when a joint state arrived, a status
   // when one arrived, a stream event when the state changed or every
@@ -126,6 +129,7 @@ class ViewScene {
   std::optional<Joints> joints_;
   std::optional<Palm> palm_;
   std::optional<status_t> status_;
+  std::optional<source_status_t> source_status_;
   int64_t joint_local_ns_ = 0;
   int64_t status_local_ns_ = 0;
   int64_t joint_messages_ = 0;

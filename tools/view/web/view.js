@@ -230,6 +230,10 @@
         `overruns ${s.loop.overruns}, cycles ${s.loop.cycles}`;
       $('source').textContent = `${s.source}, bus ${s.bus}, frames ${s.source_stats.frames}, ` +
         `missing ${s.source_stats.missing_samples}, seq gaps ${s.source_stats.seq_gaps}`;
+      // The backend's state and the counters that are not zero (source_status_t).
+      const b = s.backend;
+      $('backend').textContent = b === null ? '–' : [b.state].concat(Object.entries(b.counters)
+        .filter(([, v]) => v !== 0).map(([k, v]) => `${k.replace(/_/g, ' ')} ${v}`)).join(', ');
       $('clock-detail').textContent = `${c.synchronised ? 'synchronised' : 'not synchronised'}, est error ${c.est_error_us === null ? 'unknown' : fmt(c.est_error_us, 1) + ' µs'}, ` +
         `max error ${c.max_error_us === null ? 'unknown' : fmt(c.max_error_us, 1) + ' µs'}, offset ${fmt(c.offset_us, 1)} µs, steps ${c.steps}`;
     }
