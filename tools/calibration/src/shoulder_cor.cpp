@@ -148,6 +148,11 @@ std::vector<RotationAxis> axes_of(const std::vector<PairMotion>& pairs) {
 // a frame (whose errors are correlated through that frame's noise) count as
 // correlated, whatever the noise is (Fafchamps & Gubert 2007; Cameron,
 // Gelbach & Miller 2011).
+// Ascending eigenvalues of a symmetric matrix.
+Eigen::VectorXd eigenvalues(const Eigen::MatrixXd& m) {
+  return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m, Eigen::EigenvaluesOnly).eigenvalues();
+}
+
 template <int N>
 struct BlockLeastSquares {
   using Mat = Eigen::Matrix<double, N, N>;
@@ -163,8 +168,10 @@ struct BlockLeastSquares {
       AtA += A[i].transpose() * A[i];
       Aty += A[i].transpose() * y[i];
     }
-    Eigen::SelfAdjointEigenSolver<Mat> eig(AtA);
-    if (!(eig.eigenvalues()(0) > 1e-12 * eig.eigenvalues()(N - 1))) return std::nullopt;
+    // Dynamic-size solvers: one instantiation for both sizes (a fixed 6x6
+    // one alone cost seconds of every build).
+    const Eigen::VectorXd ev = eigenvalues(AtA);
+    if (!(ev(0) > 1e-12 * ev(N - 1))) return std::nullopt;
     const Mat inv = AtA.inverse();
     const Vec x = inv * Aty;
     std::map<std::size_t, Vec> by_frame;
@@ -180,8 +187,7 @@ struct BlockLeastSquares {
     Mat meat = -self;  // each pair's own term was added twice, once per frame
     for (const auto& [f, g] : by_frame) meat += g * g.transpose();
     // Never below the independent-pairs estimate.
-    Eigen::SelfAdjointEigenSolver<Mat> check(meat - self);
-    if (check.eigenvalues()(0) < 0) meat = self;
+    if (eigenvalues(meat - self)(0) < 0) meat = self;
     const double n = 3.0 * static_cast<double>(A.size());
     *covariance = inv * meat * inv * (n / std::max(1.0, n - N));
     return x;
@@ -368,8 +374,14 @@ std::optional<RigidTransform> fit_rigid_transform(const Eigen::Matrix3Xd& from,
     return std::nullopt;
   }
   const Eigen::Matrix3Xd centred = from.colwise() - from.rowwise().mean();
-  const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3Xd>(centred).singularValues();
-  if (!(sv(1) > 1e-6 * sv(0))) return std::nullopt;  // on one line: a rotation about it is free
+  // The scatter's eigenvalues are the squared singular values of `centred`
+  // (ascending): the middle one against the largest says whether the points
+  // span a plane. On one line, a rotation about it is free.
+  const Eigen::Vector3d ev =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(centred * centred.transpose(),
+                                                     Eigen::EigenvaluesOnly)
+          .eigenvalues();
+  if (!(ev(1) > 1e-12 * ev(2))) return std::nullopt;
   const Eigen::Matrix4d T = Eigen::umeyama(from, to, false);
   RigidTransform t;
   t.rotation = T.topLeftCorner<3, 3>();
