@@ -33,6 +33,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "command.hpp"
 #include "exodaq/common/clock_now.hpp"
@@ -93,9 +94,9 @@ void check_layout() {
 
 // Writes every published message to an LCM log file, as lcm-logger would
 // have recorded it live (event timestamp = the message's utime). status_t
-// fields that measure the replaying machine rather than the recording
-// (mono_ns of the assembly, the work-time percentiles) are set to
-// deterministic values: mono_ns = the last cycle's, work_* = 0.
+// and source_status_t fields that measure the replaying machine rather than
+// the recording (mono_ns of the assembly, the work-time percentiles) are set
+// to deterministic values: mono_ns = the last cycle's, work_* = 0.
 class LcmLogSink final : public core::MessageSink {
  public:
   LcmLogSink(const std::string& path, const std::vector<std::string>& inputs) : log_(path, inputs) {
@@ -117,13 +118,9 @@ class LcmLogSink final : public core::MessageSink {
       ++palm_messages_;
       if (data[kPalmValidOffset] != 0) ++valid_;
     } else if (msg.channel == messages::Kind::kStatus) {
-      if (!messages::decode_into(status_, data, size)) return false;
-      status_.mono_ns = last_mono_ns_;
-      status_.work_p50_us = status_.work_p99_us = status_.work_max_us = 0.0;
-      const int n = status_.encode(buffer_.data(), 0, static_cast<int>(buffer_.size()));
-      if (n < 0) return false;
-      data = buffer_.data();
-      size = static_cast<std::size_t>(n);
+      if (!restamp(status_, data, size)) return false;
+    } else if (msg.channel == messages::Kind::kSourceStatus) {
+      if (!restamp(source_status_, data, size)) return false;
     }
     try {
       log_.write(channel, msg.utime_us, data, size);
@@ -131,6 +128,21 @@ class LcmLogSink final : public core::MessageSink {
       if (error_.empty()) error_ = e.what();
       return false;
     }
+    return true;
+  }
+
+  // Re-encodes a window's message with the deterministic values above into
+  // buffer_; `data` and `size` then point there.
+  template <typename Msg>
+  bool restamp(Msg& m, const std::uint8_t*& data, std::size_t& size) noexcept {
+    if (!messages::decode_into(m, data, size)) return false;
+    m.mono_ns = last_mono_ns_;
+    if constexpr (std::is_same_v<Msg, status_t>)
+      m.work_p50_us = m.work_p99_us = m.work_max_us = 0.0;
+    const int n = m.encode(buffer_.data(), 0, static_cast<int>(buffer_.size()));
+    if (n < 0) return false;
+    data = buffer_.data();
+    size = static_cast<std::size_t>(n);
     return true;
   }
 
@@ -153,6 +165,7 @@ class LcmLogSink final : public core::MessageSink {
   std::int64_t valid_ = 0;
   std::string error_;
   status_t status_;
+  source_status_t source_status_;
   std::array<std::uint8_t, core::kMaxMessageBytes> buffer_{};
 };
 

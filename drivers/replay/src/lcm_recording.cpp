@@ -204,7 +204,7 @@ void LcmLoader::on_joint_state(const messages::LogEvent& ev) {
   slot.run_id = joint_.run_id;
   slot.sample_flags = static_cast<std::uint32_t>(joint_.sample_flags);
   slot.held_joints = 0;
-  for (int j = 0; j < 6; ++j) {
+  for (int j = 0; j < kChannelCount; ++j) {
     if ((joint_.flags[j] & joint_state_t::JOINT_HELD) != 0) {
       slot.held_joints |= 1U << static_cast<unsigned>(j);
     }

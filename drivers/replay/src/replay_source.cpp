@@ -255,10 +255,11 @@ std::int64_t ReplaySource::sample_count() const noexcept {
 }
 
 void ReplaySource::diagnose(SourceDiagnostics& out) const noexcept {
+  // Only what the recording decides: a replay's output is the same at any
+  // speed on any machine (the read-ahead ring's waits are exodaq replay's
+  // last line).
   out.add("samples_delivered", position_);
   out.add("samples_recorded", sample_count());
-  out.add("read_ahead_capacity", static_cast<std::int64_t>(buffer_capacity()));
-  out.add("read_ahead_waits", buffer_waits());
   out.set_state(position_ < sample_count() ? "playing" : "at the end");
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 // A backend's own counters and state, beyond SourceStats (what every backend
 // counts): a SocketCAN port's interface losses and reopens, a board
-// decoder's resyncs, a replay's read-ahead waits. A source fills one of these
+// decoder's resyncs, a replay's progress. A source fills one of these
 // through EncoderSource::diagnose(); the status assembler publishes it as
 // source_status_t at the status rate and the daemon's last log line names the
 // counters that are not zero (docs/messages.md, "source_status_t").

@@ -112,8 +112,7 @@ class ReplaySource final : public EncoderSource {
   std::int64_t recorded_seq() const noexcept override { return last_seq_; }
   SourceStats stats() const noexcept override { return stats_; }
   const JointResumeSet* resume_state() const noexcept override;
-  // The samples delivered of the recording's, the read-ahead ring's size and
-  // its waits; the state: "playing" or "at the end".
+  // The samples delivered of the recording's; the state: "playing" or "at the end".
   void diagnose(SourceDiagnostics& out) const noexcept override;
 
   // After start().
