@@ -4,6 +4,8 @@
 #include <tuple>
 
 namespace exodaq::drivers {
+static_assert(can::kBoardChannels == kChannelCount,
+              "protocol v1 carries one board channel per joint of the published messages");
 namespace {
 
 constexpr std::uint32_t kHalfA = 0x07;

@@ -262,7 +262,8 @@ ServiceConfig parse(const YAML::Node& root, const std::string& file) {
     throw ConfigError(file, line_of(root["model"]),
                       "model '" + c.model_path + "' has " +
                           std::to_string(c.model.chain.joint_count()) +
-                          " joints; the service publishes exactly 6");
+                          " joints; the service publishes exactly " + std::to_string(kJointCount) +
+                          " (the arrays of joint_state_t)");
   }
   for (const auto& j : c.model.chain.joints()) {
     if (j.name.size() > 31) {

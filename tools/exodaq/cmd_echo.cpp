@@ -108,7 +108,7 @@ class Table {
                     age_s > 1.0 ? fmt("  (no data for %.0f s)", age_s).c_str() : "");
       lines.emplace_back(buf);
       lines.emplace_back("joint                  angle deg   vel deg/s  homed  flags");
-      for (int i = 0; i < 6; ++i) {
+      for (int i = 0; i < wire::kJointCount; ++i) {
         std::snprintf(buf, sizeof buf, "%-20.20s %11.3f %11.2f  %-5s  %s", j.name[i].c_str(),
                       j.position[i] * kRadToDeg, j.velocity[i] * kRadToDeg,
                       j.homed[i] ? "yes" : "no", messages::joint_flag_names(j.flags[i]).c_str());
@@ -132,7 +132,7 @@ class Table {
     if (raw_) {
       const auto& e = *raw_;
       std::string counts;
-      for (int i = 0; i < 6; ++i) counts += " " + std::to_string(e.count16[i]);
+      for (int i = 0; i < wire::kJointCount; ++i) counts += " " + std::to_string(e.count16[i]);
       std::snprintf(buf, sizeof buf, "raw      present %s  board_seq %d  count16%s",
                     e.present ? "yes" : "no", e.board_seq, counts.c_str());
       lines.emplace_back(buf);

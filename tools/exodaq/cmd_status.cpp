@@ -90,7 +90,7 @@ void print_status(const std::string& channel, const status_t& s, int64_t recv_ut
               s.calibration_sha256.c_str(), s.calibration_provenance.c_str());
   std::printf("%-20s %-9s %8s %8s %8s %8s  %s\n", "joint", "homing", "glitch", "lost", "stale",
               "range", "flags (window)");
-  for (int i = 0; i < 6; ++i) {
+  for (int i = 0; i < wire::kJointCount; ++i) {
     std::printf("%-20s %-9s %8lld %8lld %8lld %8lld  %s\n", s.joint_name[i].c_str(),
                 std::string(messages::homing_name(s.homing[i])).c_str(), ll(s.glitches[i]),
                 ll(s.lost_count_events[i]), ll(s.stale_events[i]), ll(s.out_of_range_events[i]),

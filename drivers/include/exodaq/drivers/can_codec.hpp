@@ -40,7 +40,7 @@ struct CanFrame {
 // Identifiers
 // ---------------------------------------------------------------------------
 
-inline constexpr int kBoardChannels = 6;
+inline constexpr int kBoardChannels = 6;  // protocol v1's, whatever the rig
 inline constexpr int kChannelsPerCountsFrame = 3;
 
 // Base identifiers of protocol v1 and the board number. Every board-sent ID

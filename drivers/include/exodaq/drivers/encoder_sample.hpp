@@ -8,7 +8,8 @@
 
 namespace exodaq::drivers {
 
-inline constexpr int kChannelCount = 6;
+// One channel per joint of the published messages.
+inline constexpr int kChannelCount = wire::kJointCount;
 
 // Cycle-level flags: joint_state_t's SAMPLE_* bits (lcmtypes/exodaq/joint_state_t.lcm
 // says what each means), so they pass straight into the published messages.

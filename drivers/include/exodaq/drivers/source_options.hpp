@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <memory>
 
+#include "exodaq/drivers/encoder_sample.hpp"
+
 namespace exodaq::kinematics {
 class Chain;                 // kinematics/chain.hpp
 struct RigKinematicsConfig;  // kinematics/rig_kinematics.hpp
@@ -27,7 +29,7 @@ struct SourceJointContext {
 struct SourceContext {
   std::int64_t period_ns = 1'000'000;
   std::int64_t counts_per_rev = 10000;
-  std::array<SourceJointContext, 6> joints{};
+  std::array<SourceJointContext, kChannelCount> joints{};
   // The model (the sim plans task motion with it) and its elbow frame and
   // shoulder joints; shared, so that a backend that plans nothing needs no
   // kinematics headers. Null: none given (the defaults of kinematics::Chain and

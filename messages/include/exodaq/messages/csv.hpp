@@ -13,10 +13,11 @@
 #include <vector>
 
 #include "exodaq/messages/message.hpp"
+#include "exodaq/wire_constants.hpp"
 
 namespace exodaq::messages::csv {
 
-inline constexpr int kJoints = 6;
+inline constexpr int kJoints = wire::kJointCount;
 using JointNames = std::array<std::string, kJoints>;
 
 // Joint names made into column stems: letters, digits and '_' kept, anything

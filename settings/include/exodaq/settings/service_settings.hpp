@@ -9,11 +9,12 @@
 #include <string>
 
 #include "exodaq/settings/setting_list.hpp"
+#include "exodaq/wire_constants.hpp"
 
 namespace exodaq::settings {
 
-// The service publishes exactly six joints (the arrays of joint_state_t).
-inline constexpr int kJointCount = 6;
+// The service publishes exactly the joints of joint_state_t's arrays.
+inline constexpr int kJointCount = wire::kJointCount;
 
 // How sample time treats the wall clock (docs/time.md).
 struct ClockPolicy {

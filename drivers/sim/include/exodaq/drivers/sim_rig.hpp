@@ -22,7 +22,7 @@
 
 namespace exodaq::drivers::sim {
 
-inline constexpr int kJoints = 6;
+inline constexpr int kJoints = kChannelCount;
 using Vec6 = std::array<double, kJoints>;
 
 constexpr double deg(double d) noexcept {

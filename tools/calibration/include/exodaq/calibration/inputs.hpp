@@ -15,10 +15,11 @@
 #include <vector>
 
 #include "exodaq/calibration/marker_layout.hpp"
+#include "exodaq/wire_constants.hpp"
 
 namespace exodaq::calibration {
 
-inline constexpr int kJoints = 6;
+inline constexpr int kJoints = wire::kJointCount;
 inline constexpr std::uint8_t kAllJoints = 0x3F;
 
 // Most samples a reader keeps. A longer stream is thinned while it is read:
