@@ -377,10 +377,9 @@ std::optional<RigidTransform> fit_rigid_transform(const Eigen::Matrix3Xd& from,
   // The scatter's eigenvalues are the squared singular values of `centred`
   // (ascending): the middle one against the largest says whether the points
   // span a plane. On one line, a rotation about it is free.
-  const Eigen::Vector3d ev =
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(centred * centred.transpose(),
-                                                     Eigen::EigenvaluesOnly)
-          .eigenvalues();
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(
+                                 centred * centred.transpose(), Eigen::EigenvaluesOnly)
+                                 .eigenvalues();
   if (!(ev(1) > 1e-12 * ev(2))) return std::nullopt;
   const Eigen::Matrix4d T = Eigen::umeyama(from, to, false);
   RigidTransform t;
