@@ -256,10 +256,7 @@ struct Columns<source_status_t> {
     out.push_back(m.source);
     out.push_back(m.state);
     std::string counters;
-    const auto n =
-        std::min<std::size_t>(static_cast<std::size_t>(std::max<int>(m.counter_count, 0)),
-                              std::min(m.counter_name.size(), m.counter_value.size()));
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < counters_in(m); ++i) {
       if (i > 0) counters += ' ';
       counters += m.counter_name[i] + '=' + num(m.counter_value[i]);
     }

@@ -107,8 +107,7 @@ void print_source(const source_status_t* m) {
     return;
   }
   std::printf("backend  %s\n", m->state.c_str());
-  const auto n = std::min<std::size_t>(static_cast<std::size_t>(std::max<int>(m->counter_count, 0)),
-                                       m->counter_name.size());
+  const std::size_t n = messages::counters_in(*m);
   for (std::size_t i = 0; i < n; ++i) {
     std::printf("%s%-22s %12lld", i % 2 == 0 ? "         " : "   ", m->counter_name[i].c_str(),
                 static_cast<long long>(m->counter_value[i]));
@@ -164,9 +163,7 @@ void print_json(const std::string& channel, const status_t& s, const source_stat
     out += "null";
   } else {
     out += "{\"state\": " + json_string(source->state) + ", \"counters\": {";
-    for (std::size_t i = 0; i < static_cast<std::size_t>(std::max<int>(source->counter_count, 0)) &&
-                            i < source->counter_name.size();
-         ++i) {
+    for (std::size_t i = 0; i < messages::counters_in(*source); ++i) {
       out += (i ? ", " : "") + json_string(source->counter_name[i]) + ": " +
              std::to_string(source->counter_value[i]);
     }
@@ -187,13 +184,13 @@ int run_status(StatusOptions opt) {
     if (!got) got = r;
   });
   // The source_status_t of the same window follows its status_t at once.
-  std::vector<source_status_t> sources;
-  const std::string source_channel =
-      messages::channel_name(opt.rig.prefix, messages::Kind::kSourceStatus);
-  subscriber.subscribe(source_channel, messages::Kind::kSourceStatus,
-                       [&](const messages::Received& r) {
-                         if (sources.size() < 64)
-                           sources.push_back(std::get<source_status_t>(r.msg));
+  std::optional<source_status_t> source;
+  subscriber.subscribe(messages::channel_name(opt.rig.prefix, messages::Kind::kSourceStatus),
+                       messages::Kind::kSourceStatus, [&](const messages::Received& r) {
+                         const auto& m = std::get<source_status_t>(r.msg);
+                         if (!got || source) return;
+                         const auto& s = std::get<status_t>(got->msg);
+                         if (m.run_id == s.run_id && m.seq == s.seq) source = m;
                        });
   subscriber.on_mixed_runs(
       [](const messages::RunMix& mix) { print_error("WARNING: " + messages::describe(mix)); });
@@ -220,15 +217,12 @@ int run_status(StatusOptions opt) {
     return kExitFailure;
   }
   const auto& status = std::get<status_t>(got->msg);
-  const source_status_t* source = nullptr;
-  for (const source_status_t& m : sources) {
-    if (m.run_id == status.run_id && m.seq == status.seq) source = &m;
-  }
+  const source_status_t* matching = source ? &*source : nullptr;
   if (opt.json) {
-    print_json(got->channel, status, source);
+    print_json(got->channel, status, matching);
   } else {
     print_status(got->channel, status, got->recv_utime, opt);
-    print_source(source);
+    print_source(matching);
   }
   return kExitOk;
 }

@@ -310,10 +310,8 @@ std::string ViewScene::status_json(const status_t& s) const {
   if (source_status_ && source_status_->run_id == s.run_id) {
     const source_status_t& b = *source_status_;
     j.begin_object().field("state", b.state).key("counters").begin_object();
-    const auto n =
-        std::min<std::size_t>(static_cast<std::size_t>(std::max<int>(b.counter_count, 0)),
-                              std::min(b.counter_name.size(), b.counter_value.size()));
-    for (std::size_t i = 0; i < n; ++i) j.field(b.counter_name[i], b.counter_value[i]);
+    for (std::size_t i = 0; i < messages::counters_in(b); ++i)
+      j.field(b.counter_name[i], b.counter_value[i]);
     j.end_object().end_object();
   } else {
     j.null();

@@ -1,6 +1,7 @@
 #pragma once
 // A decoded exodaq message of any type of the list (message_list.def),
 // decoding by kind, and the header every message carries.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -100,5 +101,12 @@ std::string printable(std::string_view text);
 // The daemon encodes every type once, all zero, before its first cycle (so
 // lcm-gen's hashes are initialised off the loop); recordings hold them.
 bool is_startup_message(const Stamp& s) noexcept;
+
+// The counters a source_status_t holds: counter_count, within both arrays
+// (a damaged or hand-made message may disagree with itself).
+inline std::size_t counters_in(const source_status_t& m) noexcept {
+  const auto n = static_cast<std::size_t>(m.counter_count < 0 ? 0 : m.counter_count);
+  return std::min({n, m.counter_name.size(), m.counter_value.size()});
+}
 
 }  // namespace exodaq::messages
