@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "exodaq/common/count16.hpp"
+#include "exodaq/common/wrapping.hpp"
 
 namespace exodaq::core {
 
@@ -86,6 +86,19 @@ void JointTracker::home_on_index(std::int64_t index_count, JointEvent& event) no
   homing_ = HomingState::kHomed;
   ref_count_ = index_count;
   ref_turns_ = turns;
+  suspect_ = false;
+  ++counters_.homings;
+  event = JointEvent::kHomed;
+}
+
+void JointTracker::home_absolute(JointEvent& event) noexcept {
+  const double turn_rad = static_cast<double>(config_.counts_per_rev) * rad_per_count_;
+  const double at_zero_turn =
+      config_.offset_rad + static_cast<double>(config_.direction * count_) * rad_per_count_;
+  homing_ = HomingState::kHomed;
+  ref_count_ = 0;
+  ref_turns_ =
+      static_cast<std::int64_t>(std::llround((config_.home_rad - at_zero_turn) / turn_rad));
   suspect_ = false;
   ++counters_.homings;
   event = JointEvent::kHomed;
@@ -190,60 +203,75 @@ void JointTracker::update_velocity(std::int64_t t_ns) noexcept {
   reading_.velocity_rad_s = config_.direction * slope * rad_per_count_;
 }
 
-JointEvent JointTracker::update(std::int64_t t_ns, int board_seq, bool fresh, std::uint16_t count16,
-                                bool index_valid, std::uint16_t index_count16,
-                                bool board_error) noexcept {
+JointInput joint_input(const drivers::EncoderSample& s, int channel) noexcept {
+  const auto c = static_cast<std::size_t>(channel);
+  const auto bit = 1U << static_cast<unsigned>(channel);
+  JointInput in;
+  in.mono_ns = s.mono_ns;
+  in.seq = s.seq;
+  in.seq_modulus = s.seq_modulus;
+  in.fresh = s.present && (s.channel_fresh & bit) != 0;
+  in.position = s.position[c];
+  in.modulus = s.modulus[c];
+  in.index_valid = s.present && (s.index_count_valid & bit) != 0;
+  in.index_position = s.index_position[c];
+  in.absolute = (s.absolute & bit) != 0;
+  in.board_error = (s.flags & drivers::sample_flag::kBoardError) != 0;
+  return in;
+}
+
+JointEvent JointTracker::update(const JointInput& in) noexcept {
   JointEvent event = JointEvent::kNone;
-  if (fresh) {
-    take_count(t_ns, board_seq, count16, event);
+  const std::int64_t t_ns = in.mono_ns;
+  if (in.fresh) {
+    take_count(in, event);
   } else if (have_count_ && t_ns - last_fresh_ns_ > config_.stale_ns && !stale_) {
     stale_ = true;
     ++counters_.stale_events;
     if (event == JointEvent::kNone) event = JointEvent::kStale;
   }
-  if (index_valid && have_count_) {
-    const std::int64_t index_count = unwrap16(count_, index_count16);
+  if (in.index_valid && have_count_ && !in.absolute) {
+    const std::int64_t index_count = unwrap(count_, in.index_position, in.modulus);
     if (homing_ != HomingState::kHomed) {
       home_on_index(index_count, event);
     } else {
       check_index(t_ns, index_count, event);
     }
   }
-  update_reading(t_ns, fresh, board_error, event);
+  update_reading(t_ns, in.fresh, in.board_error, event);
   return event;
 }
 
-std::int64_t JointTracker::interval_since_fresh(std::int64_t t_ns, int board_seq) const noexcept {
+std::int64_t JointTracker::interval_since_fresh(const JointInput& in) const noexcept {
   // Receive instants jitter with the bus and the host (a board that sent two
-  // cycles back to back after a stall); the board's cycles do not. The longer
-  // of the two bounds the motion: a forward step of 1..127 board cycles.
-  const std::int64_t received = t_ns - last_fresh_ns_;
-  if (config_.board_period_ns <= 0 || board_seq < 0 || last_fresh_board_seq_ < 0) return received;
-  const int cycles = seq_delta(static_cast<std::uint8_t>(last_fresh_board_seq_),
-                               static_cast<std::uint8_t>(board_seq));
+  // cycles back to back after a stall); the source's cycles do not. The
+  // longer of the two bounds the motion: a forward step of source cycles.
+  const std::int64_t received = in.mono_ns - last_fresh_ns_;
+  if (config_.board_period_ns <= 0 || in.seq < 0 || last_fresh_seq_ < 0) return received;
+  const std::int64_t cycles = wrapped_delta(last_fresh_seq_, in.seq, in.seq_modulus);
   return std::max(received, cycles > 0 ? cycles * config_.board_period_ns : 0);
 }
 
-void JointTracker::take_count(std::int64_t t_ns, int board_seq, std::uint16_t count16,
-                              JointEvent& event) noexcept {
+void JointTracker::take_count(const JointInput& in, JointEvent& event) noexcept {
   if (!have_count_) {
     have_count_ = true;
     if (resume_pending_) {
-      count_ = unwrap16(resume_count_, count16);
+      count_ = unwrap(resume_count_, in.position, in.modulus);
       resume_pending_ = false;
     } else {
-      count_ = count16;
+      count_ = in.position;
       powerup_count_ = count_;
+      if (in.absolute) home_absolute(event);
     }
   } else {
-    const std::int64_t step = unwrap16(count_, count16) - count_;
-    const double dt_s = static_cast<double>(interval_since_fresh(t_ns, board_seq)) * 1e-9;
+    const std::int64_t step = unwrap(count_, in.position, in.modulus) - count_;
+    const double dt_s = static_cast<double>(interval_since_fresh(in)) * 1e-9;
     // The most counts the joint can physically produce since the last fresh
     // count, plus one count of quantisation.
     const double max_counts = config_.max_speed_rad_s * (dt_s > 0 ? dt_s : 0.0) / rad_per_count_;
-    if (max_counts >= 32767.0) {
-      // So long without a count that the 16-bit step could be off by 65536:
-      // the count is unknowable until the next index.
+    if (in.modulus > 0 && max_counts >= static_cast<double>(in.modulus / 2 - 1)) {
+      // So long without a count that the wrapped step could be off by a
+      // modulus: the count is unknowable until the next index.
       suspect_ = true;
       event = JointEvent::kUnwrapAmbiguous;
     } else if (static_cast<double>(std::llabs(step)) > max_counts + 1.0) {
@@ -253,10 +281,10 @@ void JointTracker::take_count(std::int64_t t_ns, int board_seq, std::uint16_t co
     }
     count_ += step;
   }
-  last_fresh_ns_ = t_ns;
-  last_fresh_board_seq_ = board_seq;
+  last_fresh_ns_ = in.mono_ns;
+  last_fresh_seq_ = in.seq;
   stale_ = false;
-  update_velocity(t_ns);
+  update_velocity(in.mono_ns);
 }
 
 void JointTracker::check_index(std::int64_t t_ns, std::int64_t index_count,

@@ -27,18 +27,12 @@ void Pipeline::process(const drivers::EncoderSample& sample, std::uint32_t extra
                        bool clock_invalid, CycleResult& out) noexcept {
   out.sample_flags = sample.flags | extra_sample_flags;
   if (!sample.present) out.sample_flags |= drivers::sample_flag::kMissing;
-  const bool board_error = (sample.flags & drivers::sample_flag::kBoardError) != 0;
   std::uint32_t any_fault = 0;
   bool all_homed = true;
   for (int i = 0; i < kJointCount; ++i) {
     auto& tracker = trackers_[static_cast<std::size_t>(i)];
-    const int ch = tracker.config().channel;
-    const auto bit = 1U << static_cast<unsigned>(ch);
-    const bool fresh = sample.present && (sample.channel_fresh & bit) != 0;
-    const bool index_valid = sample.present && (sample.index_count_valid & bit) != 0;
-    out.events[static_cast<std::size_t>(i)] = tracker.update(
-        sample.mono_ns, sample.board_seq, fresh, sample.count16[static_cast<std::size_t>(ch)],
-        index_valid, sample.index_count16[static_cast<std::size_t>(ch)], board_error);
+    out.events[static_cast<std::size_t>(i)] =
+        tracker.update(joint_input(sample, tracker.config().channel));
     const JointReading& r = tracker.reading();
     out.joints[static_cast<std::size_t>(i)] = r;
     q_[i] = r.position_rad;

@@ -10,7 +10,7 @@ namespace {
 
 constexpr std::uint32_t kHalfA = 0x07;
 constexpr std::uint32_t kHalfB = 0x38;
-constexpr std::uint32_t kAllChannels = 0x3F;
+static_assert(kAllChannels == 0x3F, "protocol v1: six channels");
 constexpr std::uint32_t kEventFlags = sample_flag::kSeqGap | sample_flag::kDuplicate |
                                       sample_flag::kOutOfOrder | sample_flag::kBusError;
 
@@ -24,8 +24,8 @@ void merge_superseded(const EncoderSample& older, EncoderSample& newer) noexcept
     newer.index_latched |= bit;
     if ((older.index_count_valid & bit) != 0 && (newer.index_count_valid & bit) == 0) {
       newer.index_count_valid |= bit;
-      newer.index_count16[static_cast<std::size_t>(c)] =
-          older.index_count16[static_cast<std::size_t>(c)];
+      newer.index_position[static_cast<std::size_t>(c)] =
+          older.index_position[static_cast<std::size_t>(c)];
     }
   }
 }
@@ -68,6 +68,8 @@ void BoardDecoder::reset() noexcept {
   consecutive_rejects_ = 0;
   held_ = EncoderSample{};
   held_.channel_fresh = 0;
+  held_.seq_modulus = kSeq8Modulus;
+  held_.modulus.fill(kCount16Modulus);
   index_stash_ = {};
   event_flags_ = 0;
   board_errors_ = 0;
@@ -163,7 +165,7 @@ void BoardDecoder::on_counts(const can::CanFrame& frame, const can::CountsPayloa
 
   EncoderSample& s = pending_.sample;
   for (int i = 0; i < can::kChannelsPerCountsFrame; ++i) {
-    s.count16[static_cast<std::size_t>(counts.first_channel) + static_cast<std::size_t>(i)] =
+    s.position[static_cast<std::size_t>(counts.first_channel) + static_cast<std::size_t>(i)] =
         counts.count16[static_cast<std::size_t>(i)];
   }
   s.index_latched |= static_cast<std::uint32_t>(counts.index_latched & 0x07)
@@ -194,7 +196,7 @@ void BoardDecoder::open_pending(std::uint8_t seq, int lost, bool resynced) noexc
   EncoderSample& s = pending_.sample;
   s = held_;
   s.present = true;
-  s.board_seq = seq;
+  s.seq = seq;
   s.index_latched = 0;
   s.index_count_valid = 0;
   s.flags = 0;
@@ -218,8 +220,8 @@ void BoardDecoder::close_pending() noexcept {
   merge_stashed_index(s);
   s.flags |= event_flags_;  // drops/errors seen since the previous cycle closed
   event_flags_ = 0;
-  held_.count16 = s.count16;
-  held_.board_seq = s.board_seq;
+  held_.position = s.position;
+  held_.seq = s.seq;
   closed_valid_ = true;
   closed_seq_ = pending_.seq;
   closed_fresh_ = pending_.fresh;
@@ -235,11 +237,11 @@ void BoardDecoder::close_pending() noexcept {
 }
 
 void BoardDecoder::merge_stashed_index(EncoderSample& s) noexcept {
-  const auto seq = static_cast<std::uint8_t>(s.board_seq);
+  const auto seq = static_cast<std::uint8_t>(s.seq);
   for (int c = 0; c < kChannelCount; ++c) {
     StashedIndex& st = index_stash_[static_cast<std::size_t>(c)];
     if (st.valid && can::seq_delta(st.seq, seq) >= 0) {
-      s.index_count16[static_cast<std::size_t>(c)] = st.count16;
+      s.index_position[static_cast<std::size_t>(c)] = st.count16;
       s.index_count_valid |= 1U << c;
       st.valid = false;
     }
@@ -251,14 +253,14 @@ void BoardDecoder::on_index(const can::IndexPayload& index) noexcept {
   const auto c = static_cast<std::size_t>(index.channel);
   for (int i = 0; i < queue_size_; ++i) {  // its cycle is complete but not taken yet
     EncoderSample& q = queue_[static_cast<std::size_t>((queue_head_ + i) % kQueueCapacity)];
-    if (static_cast<std::uint8_t>(q.board_seq) == index.seq) {
-      q.index_count16[c] = index.count16;
+    if (static_cast<std::uint8_t>(q.seq) == index.seq) {
+      q.index_position[c] = index.count16;
       q.index_count_valid |= 1U << index.channel;
       return;
     }
   }
   if (pending_.active && pending_.seq == index.seq) {
-    pending_.sample.index_count16[c] = index.count16;
+    pending_.sample.index_position[c] = index.count16;
     pending_.sample.index_count_valid |= 1U << index.channel;
     return;
   }

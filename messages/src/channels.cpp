@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "exodaq/message_types.hpp"
+#include "exodaq_v1/encoder_raw_t.hpp"
 
 namespace exodaq::messages {
 
@@ -111,6 +112,8 @@ std::optional<Kind> kind_of_payload(const void* data, std::size_t size) noexcept
   if (fp == fingerprint<type>()) return Kind::kind;
 #include "exodaq/messages/message_list.def"
 #undef EXODAQ_MESSAGE
+  // Earlier versions still read (lcmtypes/v1; decode() upgrades them).
+  if (fp == fingerprint<exodaq_v1::encoder_raw_t>()) return Kind::kEncoderRaw;
   return std::nullopt;
 }
 

@@ -97,29 +97,31 @@ struct Columns<palm_pose_t> {
   }
 };
 
-// encoder_raw_t: arrays by board channel.
+// encoder_raw_t: arrays by source channel.
 template <>
 struct Columns<encoder_raw_t> {
   static void header(std::vector<std::string>& h, const JointNames&) {
-    h.emplace_back("present");
-    h.emplace_back("board_seq");
-    for (const char* f : {"count16_ch", "index_count16_ch"}) {
+    for (const char* c : {"present", "source_seq", "source_seq_modulus"}) h.emplace_back(c);
+    for (const char* f : {"position_ch", "modulus_ch", "index_position_ch"}) {
       for (int c = 0; c < kJoints; ++c) h.push_back(f + std::to_string(c));
     }
-    for (const char* c : {"index_latched", "index_count_valid", "board_state", "board_errors",
-                          "source_flags", "wall_ns"}) {
+    for (const char* c : {"index_latched", "index_count_valid", "absolute", "channel_fresh",
+                          "board_state", "board_errors", "source_flags", "wall_ns"}) {
       h.emplace_back(c);
     }
   }
 
   static void values(const encoder_raw_t& m, std::vector<std::string>& out) {
     out.push_back(kBool(m.present));
-    out.push_back(num(m.board_seq));
-    each(m.count16, out, kNum);
-    each(m.index_count16, out, kNum);
-    for (const std::int64_t v : {std::int64_t{m.index_latched}, std::int64_t{m.index_count_valid},
-                                 std::int64_t{m.board_state}, std::int64_t{m.board_errors},
-                                 std::int64_t{m.source_flags}, m.wall_ns}) {
+    out.push_back(num(m.source_seq));
+    out.push_back(num(m.source_seq_modulus));
+    each(m.position, out, kNum);
+    each(m.modulus, out, kNum);
+    each(m.index_position, out, kNum);
+    for (const std::int64_t v :
+         {std::int64_t{m.index_latched}, std::int64_t{m.index_count_valid},
+          std::int64_t{m.absolute}, std::int64_t{m.channel_fresh}, std::int64_t{m.board_state},
+          std::int64_t{m.board_errors}, std::int64_t{m.source_flags}, m.wall_ns}) {
       out.push_back(num(v));
     }
   }

@@ -2,6 +2,8 @@
 
 #include <cstdio>
 
+#include "exodaq/messages/raw_sample.hpp"
+
 namespace exodaq::messages {
 
 Kind kind_of(const Message& m) noexcept {
@@ -13,6 +15,14 @@ template <typename T>
 std::optional<Message> decode_as(const void* data, std::size_t size) {
   T msg;
   if (!decode_into(msg, data, size)) return std::nullopt;
+  return Message{std::move(msg)};
+}
+
+// Either version, as version 2 (raw_sample.hpp).
+template <>
+std::optional<Message> decode_as<encoder_raw_t>(const void* data, std::size_t size) {
+  encoder_raw_t msg;
+  if (decode_encoder_raw(msg, data, size) == RawVersion::kNone) return std::nullopt;
   return Message{std::move(msg)};
 }
 }  // namespace

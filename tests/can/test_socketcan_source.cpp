@@ -120,7 +120,7 @@ TEST(SocketCanSource, SyncMasterNormalCycles) {
   for (std::int64_t k = 0; k < 300; ++k) {
     ASSERT_EQ(f.cycle(k), ReadStatus::kSample) << k;
     ASSERT_TRUE(f.sample.present);
-    EXPECT_EQ(f.sample.board_seq, k % 256);
+    EXPECT_EQ(f.sample.seq, k % 256);
     EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, 0U) << k;
     EXPECT_EQ(f.sample.channel_fresh, 0x3FU);
     // The sample instant is the kernel receive stamp of COUNTS_B, the frame
@@ -131,7 +131,7 @@ TEST(SocketCanSource, SyncMasterNormalCycles) {
     EXPECT_EQ(f.port->mono, f.deadline(k) + board.latency_b);
     // Counts are what the simulated board counted.
     for (int c = 0; c < 6; ++c) {
-      EXPECT_EQ(f.sample.count16[static_cast<std::size_t>(c)],
+      EXPECT_EQ(f.sample.position[static_cast<std::size_t>(c)],
                 static_cast<std::uint16_t>(board.rig.encoders().count(c) & 0xFFFF));
     }
   }
@@ -215,7 +215,7 @@ TEST(SocketCanSource, LateAnswerIsSupersededAndItsIndexLatchKept) {
   counts(0, 0, 0, f.deadline(0) + 100'000);
   counts(1, 0, 0, f.deadline(0) + 110'000);
   ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
-  EXPECT_EQ(f.sample.board_seq, 0);
+  EXPECT_EQ(f.sample.seq, 0);
   // Cycle 1: the answer (with an index latch on channel 1) only arrives after
   // the poll deadline → missing.
   f.port->push(can::encode_index(1, 777, 1), f.deadline(1) + 500'000);
@@ -227,10 +227,10 @@ TEST(SocketCanSource, LateAnswerIsSupersededAndItsIndexLatchKept) {
   counts(0, 2, 0, f.deadline(2) + 100'000);
   counts(1, 2, 0, f.deadline(2) + 110'000);
   ASSERT_EQ(f.cycle(2), ReadStatus::kSample);
-  EXPECT_EQ(f.sample.board_seq, 2);
+  EXPECT_EQ(f.sample.seq, 2);
   EXPECT_NE(f.sample.index_latched & 0x02U, 0U);
   EXPECT_NE(f.sample.index_count_valid & 0x02U, 0U);
-  EXPECT_EQ(f.sample.index_count16[1], 777);
+  EXPECT_EQ(f.sample.index_position[1], 777);
   EXPECT_EQ(f.source->detail().superseded_samples, 1);
   EXPECT_EQ(f.source->stats().seq_gaps, 0);
   // Sync master waited for the answer to this cycle's SYNC (seq 2), not for seq 1.
@@ -258,7 +258,7 @@ TEST(SocketCanSource, MalformedFramesCountedNotFatal) {
   EXPECT_EQ(f.source->decoder().detail().rejected[static_cast<int>(can::Reject::kWrongDlc)], 1);
   EXPECT_EQ(f.source->decoder().detail().rejected[static_cast<int>(can::Reject::kUnknownId)], 1);
   EXPECT_EQ(f.source->decoder().detail().rejected[static_cast<int>(can::Reject::kRtr)], 1);
-  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.seq, 1);
 }
 
 TEST(SocketCanSource, ErrorFramesDriveBusStateAndBusErrors) {
@@ -431,7 +431,7 @@ TEST(SocketCanSource, FreeRunningBoardFollowed) {
   EXPECT_EQ(f.cycle(0), ReadStatus::kNoSample);
   for (std::int64_t k = 1; k < 100; ++k) {
     ASSERT_EQ(f.cycle(k), ReadStatus::kSample) << k;
-    EXPECT_EQ(f.sample.board_seq, k - 1);
+    EXPECT_EQ(f.sample.seq, k - 1);
     EXPECT_EQ(f.port->mono, f.deadline(k));  // no waiting
     EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, 0U);
   }
@@ -445,7 +445,7 @@ TEST(SocketCanSource, FreeRunningBoardEarlyInTheCycle) {
   f.free_run(50, f.deadline(0) + 200'000);
   for (std::int64_t k = 0; k < 50; ++k) {
     ASSERT_EQ(f.cycle(k), ReadStatus::kSample) << k;
-    EXPECT_EQ(f.sample.board_seq, k);  // waited for it within the cycle
+    EXPECT_EQ(f.sample.seq, k);  // waited for it within the cycle
   }
 }
 
@@ -468,7 +468,7 @@ TEST(SocketCanSource, FreeRunningBacklogIsDeliveredOldestFirstWithNothingSuperse
   std::int64_t k = 0;
   for (; k < kQueued; ++k) {
     ASSERT_EQ(f.source->read(t, f.sample), ReadStatus::kSample) << k;
-    EXPECT_EQ(f.sample.board_seq, k % 256);
+    EXPECT_EQ(f.sample.seq, k % 256);
     EXPECT_TRUE(f.sample.present);
     EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, 0U) << k;
     // Stamped when its COUNTS_B came in, long before this read.
@@ -501,7 +501,7 @@ TEST(SocketCanSource, FreeRunningNothingDueUntilTheBoardIsOverdue) {
   EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);  // 1.0 periods since the last: not overdue
   EXPECT_EQ(f.port->mono, f.deadline(1) + 400'000);
   ASSERT_EQ(f.cycle(2), ReadStatus::kSample);  // there at once
-  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.seq, 1);
   EXPECT_EQ(f.port->mono, f.deadline(2));
   // Then silence: at the next poll deadline the last sample is 1.995 periods
   // old, overdue: MISSING, every read.
@@ -534,7 +534,7 @@ TEST(SocketCanSource, FreeRunningACycleQueuedBeforeTheOverdueClockReadingIsTaken
   };
   ASSERT_EQ(f.cycle(2), ReadStatus::kSample);
   EXPECT_TRUE(descheduled);
-  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.seq, 1);
   EXPECT_EQ(f.sample.mono_ns, poll_deadline + 50'000);
   EXPECT_EQ(f.source->stats().missing_samples, 0);
   // Then silence: not overdue at the next poll deadline (0.95 periods), then
@@ -569,7 +569,7 @@ TEST(SocketCanSource, FreeRunningACycleQueuedAfterTheOverdueReadingIsMissingThen
   EXPECT_LT(stamp_b - heard, kPeriod + kPeriod / 2);  // the stamps show no such silence
   EXPECT_LT(f.port->mono, queued);
   ASSERT_EQ(f.cycle(3), ReadStatus::kSample);
-  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.seq, 1);
   EXPECT_EQ(f.sample.mono_ns, stamp_b);
   EXPECT_EQ(f.sample.flags & sample_flag::kMissing, 0U);
   EXPECT_EQ(f.source->stats().missing_samples, 1);
@@ -595,11 +595,11 @@ TEST(SocketCanSource, FreeRunningACycleQueuedAfterANewerOneIsCountedOutOfOrder) 
   f.cycle_frames(3, f.deadline(3) + 100'000);
   EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);
   ASSERT_EQ(f.cycle(2), ReadStatus::kSample);
-  EXPECT_EQ(f.sample.board_seq, 2);
+  EXPECT_EQ(f.sample.seq, 2);
   EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, sample_flag::kSeqGap);
   EXPECT_EQ(f.source->backlog(), 0);
   ASSERT_EQ(f.cycle(3), ReadStatus::kSample);
-  EXPECT_EQ(f.sample.board_seq, 3);
+  EXPECT_EQ(f.sample.seq, 3);
   EXPECT_EQ(f.sample.flags & ~sample_flag::kBoardError, sample_flag::kOutOfOrder);
   EXPECT_EQ(f.source->stats().out_of_order, 2);
   EXPECT_EQ(f.source->stats().seq_gaps, 1);
@@ -627,7 +627,7 @@ TEST(SocketCanSource, FreeRunningAHalfCycleIsNotSilence) {
   EXPECT_EQ(f.cycle(1), ReadStatus::kNothingDue);  // overdue, were the half not heard
   ASSERT_EQ(f.cycle(2), ReadStatus::kSample);      // the half is over half a period old
   EXPECT_NE(f.sample.flags & sample_flag::kPartial, 0U);
-  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.seq, 1);
   EXPECT_EQ(f.sample.mono_ns, half_at);
   EXPECT_EQ(f.cycle(3), ReadStatus::kNoSample);  // 1.84 periods since the half: MISSING
   EXPECT_EQ(f.source->stats().missing_samples, 1);
@@ -650,7 +650,7 @@ TEST(SocketCanSource, ALateSyncIsCountedAndItsAnswerWaitedFor) {
   f.port->advance_to(sync_at);
   t.now_mono_ns = sync_at;
   ASSERT_EQ(f.source->read(t, f.sample), ReadStatus::kSample);
-  EXPECT_EQ(f.sample.board_seq, 1);
+  EXPECT_EQ(f.sample.seq, 1);
   EXPECT_EQ(f.sample.mono_ns, sync_at + board.latency_b);  // the true instant
   EXPECT_EQ(f.source->detail().late_syncs, 1);
   // 50 µs late is not late.

@@ -128,7 +128,7 @@ struct Rig {
   }
   Counts counts() const {
     Counts c{};
-    std::copy(sample.count16.begin(), sample.count16.begin() + can::kBoardChannels, c.begin());
+    std::copy(sample.position.begin(), sample.position.begin() + can::kBoardChannels, c.begin());
     return c;
   }
 
@@ -168,8 +168,8 @@ void run_two_rigs(bool kernel_filtered) {
     ASSERT_EQ(b.cycle(k), ReadStatus::kSample) << k;
     const auto ku = static_cast<std::size_t>(k);
     ASSERT_TRUE(a.sample.present && b.sample.present) << k;
-    ASSERT_EQ(a.sample.board_seq, k % 256) << k;
-    ASSERT_EQ(b.sample.board_seq, (100 + k) % 256) << k;
+    ASSERT_EQ(a.sample.seq, k % 256) << k;
+    ASSERT_EQ(b.sample.seq, (100 + k) % 256) << k;
     ASSERT_EQ(a.counts(), board0.wire[ku]) << "rig A, cycle " << k;
     ASSERT_EQ(b.counts(), board1.wire[ku]) << "rig B, cycle " << k;
     EXPECT_EQ(a.sample.flags & ~sample_flag::kBoardError, 0U) << k;
@@ -238,7 +238,7 @@ TEST(TwoBoardsOnOneBus, TwoSyncMastersMakeEveryBoardAnswerTwice) {
   for (std::int64_t k = 0; k < kCycles; ++k) {
     ASSERT_EQ(a.cycle(k), ReadStatus::kSample) << k;
     ASSERT_EQ(b.cycle(k), ReadStatus::kSample) << k;
-    EXPECT_EQ(a.sample.board_seq, (2 * k) % 256) << k;  // its board runs at twice the rate
+    EXPECT_EQ(a.sample.seq, (2 * k) % 256) << k;  // its board runs at twice the rate
   }
   EXPECT_EQ(bus.syncs, 2 * kCycles);
   EXPECT_EQ(board0.next, 2 * kCycles);

@@ -83,7 +83,7 @@ public class JavaClient {
       }
       case "encoder_raw_t": {
         exodaq.encoder_raw_t m = new exodaq.encoder_raw_t(ins);
-        check(m.count16[3] == -32768, "count16[3]");
+        check(m.position[3] == -9007199254740992L, "position[3]");
         check(m.wall_ns == 1700000000123456789L, "wall_ns");
         dump(type, m);
         break;

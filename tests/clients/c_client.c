@@ -96,12 +96,14 @@ static void print_palm_pose(const exodaq_palm_pose_t* m) {
 static void print_encoder_raw(const exodaq_encoder_raw_t* m) {
   g_type = "encoder_raw_t";
   I(utime), I(mono_ns), I(seq), I(run_id);
-  I(present), I(board_seq);
-  IA(count16, 6);
-  IA(index_count16, 6);
-  I(index_latched), I(index_count_valid), I(board_state), I(board_errors), I(source_flags);
+  I(present), I(source_seq), I(source_seq_modulus);
+  IA(position, 6);
+  IA(modulus, 6);
+  IA(index_position, 6);
+  I(index_latched), I(index_count_valid), I(absolute), I(channel_fresh);
+  I(board_state), I(board_errors), I(source_flags);
   I(wall_ns);
-  CHECK(m->count16[3] == -32768);
+  CHECK(m->position[3] == -9007199254740992LL);
   CHECK(m->wall_ns == 1700000000123456789LL);
 }
 

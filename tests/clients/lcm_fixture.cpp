@@ -111,15 +111,20 @@ encoder_raw_t make_encoder_raw() {
   m.seq = kSeq;
   m.run_id = kRunId;
   m.present = 1;
-  m.board_seq = 255;
-  const int16_t c[6] = {0, -1, 32767, -32768, 12345, -12345};
-  const int16_t ic[6] = {1, 2, 3, -4, -5, -6};
+  m.source_seq = 255;
+  m.source_seq_modulus = 256;
+  const int64_t c[6] = {0, -1, 4294967295, -9007199254740992, 12345, 9007199254740992};
+  const int64_t mod[6] = {65536, 0, 4294967296, 0, 65536, 0};
+  const int64_t ic[6] = {1, 2, 3, -4, 5, -6};
   for (int i = 0; i < 6; ++i) {
-    m.count16[i] = c[i];
-    m.index_count16[i] = ic[i];
+    m.position[i] = c[i];
+    m.modulus[i] = mod[i];
+    m.index_position[i] = ic[i];
   }
   m.index_latched = 0x29;
   m.index_count_valid = 0x01;
+  m.absolute = 0x0A;
+  m.channel_fresh = 0x07;
   m.board_state = 2;
   m.board_errors = 0x40;
   m.source_flags = joint_state_t::SAMPLE_PARTIAL;
@@ -241,9 +246,9 @@ void dump(const palm_pose_t& m) {
 }
 void dump(const encoder_raw_t& m) {
   Dump d("encoder_raw_t");
-  D(utime), D(mono_ns), D(seq), D(run_id), D(present), D(board_seq), D(count16), D(index_count16),
-      D(index_latched), D(index_count_valid), D(board_state), D(board_errors), D(source_flags),
-      D(wall_ns);
+  D(utime), D(mono_ns), D(seq), D(run_id), D(present), D(source_seq), D(source_seq_modulus),
+      D(position), D(modulus), D(index_position), D(index_latched), D(index_count_valid),
+      D(absolute), D(channel_fresh), D(board_state), D(board_errors), D(source_flags), D(wall_ns);
 }
 void dump(const status_t& m) {
   Dump d("status_t");

@@ -71,7 +71,7 @@ def check_values(msg):
         check(exodaq.invalid_reason_names(msg.invalid_reason) == "UNHOMED|JOINT_FAULT",
               "invalid reason names")
     elif t == "encoder_raw_t":
-        check(msg.count16[3] == -32768, "count16[3]")
+        check(msg.position[3] == -9007199254740992, "position[3]")
         check(msg.wall_ns == 1700000000123456789, "wall_ns")
         check(exodaq.sample_flag_names(msg.source_flags) == "PARTIAL", "source flag names")
     elif t == "status_t":

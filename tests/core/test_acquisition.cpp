@@ -44,11 +44,13 @@ class RampSource final : public drivers::EncoderSource {
     out = drivers::EncoderSample{};
     out.present = true;
     out.mono_ns = t.deadline_mono_ns;
-    out.board_seq = static_cast<std::int16_t>(k & 0xFF);
+    out.seq = k & 0xFF;
+    out.seq_modulus = 256;
+    out.modulus.fill(65536);
     for (int c = 0; c < 6; ++c) {
-      out.count16[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(1000 + k / 4);
+      out.position[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(1000 + k / 4);
       if (k == 5)
-        out.index_count16[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(1000 + k / 4);
+        out.index_position[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(1000 + k / 4);
     }
     if (k == 5) out.index_count_valid = out.index_latched = 0x3F;
     ++stats_.frames;
@@ -88,9 +90,9 @@ class RecordedSource final : public drivers::EncoderSource {
     out.mono_ns = mono_of(i);
     out.wall_ns = wall_of(i);
     for (int c = 0; c < 6; ++c) {
-      out.count16[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(1000 + i / 4);
+      out.position[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(1000 + i / 4);
       if (i == 5)
-        out.index_count16[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(1000 + i / 4);
+        out.index_position[static_cast<std::size_t>(c)] = static_cast<std::uint16_t>(1000 + i / 4);
     }
     if (i == 5) out.index_count_valid = out.index_latched = 0x3F;
     if (seq_of(i) == 205) out.flags = drivers::sample_flag::kClockStep;

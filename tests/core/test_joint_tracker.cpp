@@ -9,6 +9,7 @@
 
 using exodaq::core::HomingState;
 using exodaq::core::JointEvent;
+using exodaq::core::JointInput;
 using exodaq::core::JointTracker;
 using exodaq::core::JointTrackerConfig;
 namespace jf = exodaq::core::joint_flag;
@@ -35,11 +36,25 @@ JointTrackerConfig base_config() {
   return c;
 }
 
+// Protocol v1's input: 16-bit positions, 8-bit sequence (-1: none).
+JointInput v1_input(std::int64_t t_ns, int board_seq, bool fresh, std::int64_t count,
+                    bool index = false, std::int64_t index_count = 0) {
+  JointInput in;
+  in.mono_ns = t_ns;
+  in.seq = board_seq;
+  in.seq_modulus = 256;
+  in.fresh = fresh;
+  in.position = count & 0xFFFF;
+  in.modulus = 65536;
+  in.index_valid = index;
+  in.index_position = index_count & 0xFFFF;
+  return in;
+}
+
 // Feeds `count` (unwrapped, any int64) as its low 16 bits.
 JointEvent feed(JointTracker& t, std::int64_t ms, std::int64_t count, bool index = false,
                 std::int64_t index_count = 0) {
-  return t.update(ms * kMs, -1, true, static_cast<std::uint16_t>(count & 0xFFFF), index,
-                  static_cast<std::uint16_t>(index_count & 0xFFFF), false);
+  return t.update(v1_input(ms * kMs, -1, true, count, index, index_count));
 }
 }  // namespace
 
@@ -199,8 +214,7 @@ std::vector<Burst> stalled_then_burst() {
 
 // A fresh count (no index, no board error) received at `received_ns`.
 JointEvent count_at(JointTracker& t, std::int64_t received_ns, int board_seq, std::int64_t count) {
-  return t.update(received_ns, board_seq, true, static_cast<std::uint16_t>(count & 0xFFFF), false,
-                  0, false);
+  return t.update(v1_input(received_ns, board_seq, true, count));
 }
 
 JointTrackerConfig board_config(std::int64_t board_period_ns = kMs) {
@@ -255,11 +269,11 @@ TEST(JointTracker, StaleAfterConfiguredTimeWithoutAFreshCount) {
   JointTracker t(base_config());
   feed(t, 0, 0);
   for (int ms = 1; ms <= 20; ++ms) {
-    EXPECT_EQ(t.update(ms * kMs, -1, false, 0, false, 0, false), JointEvent::kNone);
+    EXPECT_EQ(t.update(v1_input(ms * kMs, -1, false, 0)), JointEvent::kNone);
     EXPECT_TRUE(t.reading().flags & jf::kHeld);
     EXPECT_EQ(t.reading().flags & jf::kStale, 0u);
   }
-  EXPECT_EQ(t.update(21 * kMs, -1, false, 0, false, 0, false), JointEvent::kStale);
+  EXPECT_EQ(t.update(v1_input(21 * kMs, -1, false, 0)), JointEvent::kStale);
   EXPECT_TRUE(t.reading().flags & jf::kStale);
   EXPECT_EQ(t.counters().stale_events, 1);
   feed(t, 22, 0);
@@ -351,7 +365,7 @@ TEST(JointTracker, VelocityFromRunningSumsMatchesTheTwoPassFit) {
     const double s = k * 1e-3;
     const auto count =
         static_cast<std::int64_t>(std::floor(3000.0 * std::sin(0.7 * s) + 40.0 * s * s));
-    t.update(tk, -1, true, static_cast<std::uint16_t>(count & 0xFFFF), false, 0, false);
+    t.update(v1_input(tk, -1, true, count));
     ts.push_back(tk);
     cs.push_back(count);
     if (ts.size() > 21) {
@@ -400,4 +414,92 @@ TEST(JointTracker, ShrinkingTheVelocityWindowKeepsTheNewestSamples) {
   }
   EXPECT_EQ(a.reading().velocity_rad_s, b.reading().velocity_rad_s);
   EXPECT_NE(a.reading().velocity_rad_s, 0.0);
+}
+
+namespace {
+// A fresh position of a channel that wraps at `modulus` (0: never).
+JointInput wrapped_input(std::int64_t ms, std::int64_t position, std::int64_t modulus,
+                         bool absolute = false) {
+  JointInput in;
+  in.mono_ns = ms * kMs;
+  in.fresh = true;
+  in.position = position;
+  in.modulus = modulus;
+  in.absolute = absolute;
+  return in;
+}
+constexpr double kRadPerCount = 2 * kPi / 10000;
+}  // namespace
+
+TEST(JointTracker, UnwrapsAtTheSourcesStatedModulus) {
+  constexpr std::int64_t k32 = std::int64_t{1} << 32;
+  JointTracker t(base_config());
+  t.update(wrapped_input(0, k32 - 1, k32));
+  EXPECT_EQ(t.reading().count, k32 - 1);
+  t.update(wrapped_input(1, 0, k32));  // one count forwards across the 32-bit wrap
+  EXPECT_EQ(t.reading().count, k32);
+  t.update(wrapped_input(2, k32 - 1, k32));
+  EXPECT_EQ(t.reading().count, k32 - 1);
+  EXPECT_EQ(t.reading().flags & jf::kGlitch, 0u);
+
+  JointTracker whole(base_config());  // modulus 0: the position is the count
+  whole.update(wrapped_input(0, -70000, 0));
+  whole.update(wrapped_input(1, -69999, 0));
+  EXPECT_EQ(whole.reading().count, -69999);
+}
+
+TEST(JointTracker, AnUnwrapIsAmbiguousOnceHalfTheModulusCouldHavePassed) {
+  // 0.96 rad/s is 1528 counts/s: 1.4 s without a count could be 2139 counts,
+  // more than half of a 12-bit modulus, far less than half of 16 bits.
+  JointTracker small(base_config());
+  small.update(wrapped_input(0, 100, 4096));
+  EXPECT_EQ(small.update(wrapped_input(1400, 110, 4096)), JointEvent::kUnwrapAmbiguous);
+  EXPECT_NE(small.reading().flags & jf::kGlitch, 0u);
+
+  JointTracker wide(base_config());
+  wide.update(wrapped_input(0, 100, 65536));
+  EXPECT_EQ(wide.update(wrapped_input(1400, 110, 65536)), JointEvent::kNone);
+  EXPECT_EQ(wide.reading().flags & jf::kGlitch, 0u);
+
+  JointTracker whole(base_config());  // never wraps: a step is never ambiguous, only a glitch
+  whole.update(wrapped_input(0, 100, 0));
+  EXPECT_EQ(whole.update(wrapped_input(1400, 30000, 0)), JointEvent::kGlitch);
+}
+
+TEST(JointTracker, AnAbsoluteEncoderIsHomedAtItsFirstPosition) {
+  // Single-turn, 10000 counts: offset 30 deg is the angle at the encoder's zero.
+  JointTracker t(base_config());
+  EXPECT_EQ(t.update(wrapped_input(0, 417, 10000, true)), JointEvent::kHomed);
+  EXPECT_TRUE(t.reading().homed);
+  EXPECT_EQ(t.reading().flags & jf::kFaults, 0u);
+  EXPECT_NEAR(t.reading().position_rad, 30.0 * kPi / 180.0 + 417 * kRadPerCount, 1e-12);
+  // Down across the encoder's zero, one count a millisecond: the angle goes on.
+  for (std::int64_t k = 1; k <= 420; ++k) {
+    t.update(wrapped_input(k, (417 - k + 10000) % 10000, 10000, true));
+  }
+  EXPECT_EQ(t.reading().count, -3);
+  EXPECT_NEAR(t.reading().position_rad, 30.0 * kPi / 180.0 - 3 * kRadPerCount, 1e-12);
+  // An index latch means nothing to an absolute channel.
+  JointInput in = wrapped_input(421, 9996, 10000, true);
+  in.index_valid = true;
+  in.index_position = 5000;
+  EXPECT_EQ(t.update(in), JointEvent::kNone);
+  EXPECT_NEAR(t.reading().position_rad, 30.0 * kPi / 180.0 - 4 * kRadPerCount, 1e-12);
+  EXPECT_EQ(t.counters().homings, 1);
+}
+
+TEST(JointTracker, AnAbsoluteEncoderTakesTheTurnNearestTheHomePosture) {
+  // Zero at 200 deg: 5694 counts (204.98 deg) on is 404.98 deg, i.e. 44.98
+  // deg, next to the 45 deg home posture; direction -1 counts the other way.
+  auto c = base_config();
+  c.offset_rad = 200.0 * kPi / 180.0;
+  JointTracker t(c);
+  t.update(wrapped_input(0, 5694, 10000, true));
+  EXPECT_NEAR(t.reading().position_rad, (200.0 - 360.0) * kPi / 180.0 + 5694 * kRadPerCount, 1e-12);
+  c.direction = -1;
+  c.offset_rad = -110.0 * kPi / 180.0;
+  JointTracker down(c);
+  down.update(wrapped_input(0, 5694, 10000, true));
+  EXPECT_NEAR(down.reading().position_rad, (-110.0 + 360.0) * kPi / 180.0 - 5694 * kRadPerCount,
+              1e-12);
 }

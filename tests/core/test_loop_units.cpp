@@ -366,7 +366,7 @@ TEST(MessageEncoder, PalmFirstThenJointsThenRawAllocatingNothing) {
     r.joints[2].flags = core::joint_flag::kStale;
     drivers::EncoderSample sample;
     sample.present = true;
-    sample.count16[4] = 4321;
+    sample.position[4] = 4321;
     kept->kept.clear();
     kept->kept.reserve(8);
     {
@@ -394,7 +394,7 @@ TEST(MessageEncoder, PalmFirstThenJointsThenRawAllocatingNothing) {
       EXPECT_EQ(kept->kept[2].channel, messages::Kind::kEncoderRaw);
       const auto er = decode<exodaq::encoder_raw_t>(kept->kept[2]);
       EXPECT_EQ(er.seq, 9);
-      EXPECT_EQ(static_cast<std::uint16_t>(er.count16[4]), 4321);
+      EXPECT_EQ(er.position[4], 4321);
     }
   }
 }

@@ -190,7 +190,7 @@ std::int64_t expect_every_board_sample_once(const LoopRun& r, const SteppedClock
     EXPECT_EQ(js[i].seq, s);
     EXPECT_EQ(raw[i].seq, s);
     EXPECT_TRUE(raw[i].present) << s;
-    EXPECT_EQ(raw[i].board_seq, s % 256) << s;
+    EXPECT_EQ(raw[i].source_seq, s % 256) << s;
     EXPECT_EQ(js[i].sample_flags & joint_state_t::SAMPLE_MISSING, 0) << s;
     if (rig != nullptr) {
       EXPECT_EQ(js[i].mono_ns, start_mono + rig->sample_offset_ns(s)) << s;

@@ -59,8 +59,8 @@ TEST_F(Decoder, CompleteCycleAssemblesOneSampleStampedByTheLaterFrame) {
   EXPECT_FALSE(dec.has_partial());
   const EncoderSample s = take();
   EXPECT_TRUE(s.present);
-  EXPECT_EQ(s.board_seq, 5);
-  for (int c = 0; c < 6; ++c) EXPECT_EQ(s.count16[static_cast<std::size_t>(c)], 1000 * c + 5);
+  EXPECT_EQ(s.seq, 5);
+  for (int c = 0; c < 6; ++c) EXPECT_EQ(s.position[static_cast<std::size_t>(c)], 1000 * c + 5);
   EXPECT_EQ(s.channel_fresh, 0x3FU);
   EXPECT_EQ(s.flags, 0U);
   EXPECT_EQ(s.mono_ns, 10 * kMs + 130'000);
@@ -77,7 +77,7 @@ TEST_F(Decoder, BHalfFirstAlsoCompletes) {
   dec.on_frame(counts(1, 9, 2 * kMs));
   dec.on_frame(counts(0, 9, 2 * kMs + 50'000));
   const EncoderSample s = take();
-  EXPECT_EQ(s.board_seq, 9);
+  EXPECT_EQ(s.seq, 9);
   EXPECT_EQ(s.mono_ns, 2 * kMs + 50'000);
   EXPECT_EQ(s.flags, 0U);
 }
@@ -86,7 +86,7 @@ TEST_F(Decoder, SequenceWrapIsNotAGap) {
   for (int k = 250; k < 262; ++k) {
     cycle(k & 0xFF, k * kMs);
     const EncoderSample s = take();
-    EXPECT_EQ(s.board_seq, k & 0xFF);
+    EXPECT_EQ(s.seq, k & 0xFF);
     EXPECT_EQ(s.flags, 0U);
   }
   EXPECT_EQ(dec.stats().seq_gaps, 0);
@@ -98,7 +98,7 @@ TEST_F(Decoder, GapIsCountedAndFlaggedOnTheNextSample) {
   cycle(15, 15 * kMs);
   EXPECT_EQ(take().flags, 0U);
   const EncoderSample s = take();
-  EXPECT_EQ(s.board_seq, 14);
+  EXPECT_EQ(s.seq, 14);
   EXPECT_EQ(s.flags, flag::kSeqGap);
   EXPECT_EQ(take().flags, 0U);
   EXPECT_EQ(dec.stats().seq_gaps, 1);
@@ -114,7 +114,7 @@ TEST_F(Decoder, DuplicatesAreDroppedCountedAndFlagged) {
   dec.on_frame(counts(1, 2, 2 * kMs + 130'000));
   EXPECT_EQ(take().flags, 0U);
   const EncoderSample s = take();
-  EXPECT_EQ(s.board_seq, 2);
+  EXPECT_EQ(s.seq, 2);
   EXPECT_EQ(s.flags, flag::kDuplicate);
   EXPECT_EQ(s.mono_ns, 2 * kMs + 130'000);
   EXPECT_EQ(dec.stats().duplicates, 3);
@@ -145,11 +145,11 @@ TEST_F(Decoder, PartialByDeadlineFlushHoldsTheOtherHalf) {
   EXPECT_FALSE(dec.poll_sample(s));
   ASSERT_TRUE(dec.flush(s));
   EXPECT_TRUE(s.present);
-  EXPECT_EQ(s.board_seq, 2);
+  EXPECT_EQ(s.seq, 2);
   EXPECT_EQ(s.flags, flag::kPartial);
   EXPECT_EQ(s.channel_fresh, 0x07U);
-  EXPECT_EQ(s.count16[0], 2);         // fresh
-  EXPECT_EQ(s.count16[3], 3000 + 1);  // held from cycle 1
+  EXPECT_EQ(s.position[0], 2);         // fresh
+  EXPECT_EQ(s.position[3], 3000 + 1);  // held from cycle 1
   EXPECT_EQ(s.mono_ns, 2 * kMs);
   EXPECT_EQ(dec.detail().partial_samples, 1);
   // B of cycle 2 arriving after the flush is late, not a duplicate.
@@ -157,7 +157,7 @@ TEST_F(Decoder, PartialByDeadlineFlushHoldsTheOtherHalf) {
   cycle(3, 3 * kMs);
   const EncoderSample n = take();
   EXPECT_EQ(n.flags, flag::kOutOfOrder);
-  EXPECT_EQ(n.count16[3], 3003);
+  EXPECT_EQ(n.position[3], 3003);
   EXPECT_EQ(dec.stats().out_of_order, 1);
 }
 
@@ -165,11 +165,11 @@ TEST_F(Decoder, PartialClosedByANewerCycleOnlyB) {
   dec.on_frame(counts(1, 7, 7 * kMs));  // A of 7 lost
   cycle(8, 8 * kMs);
   const EncoderSample s7 = take();
-  EXPECT_EQ(s7.board_seq, 7);
+  EXPECT_EQ(s7.seq, 7);
   EXPECT_EQ(s7.flags, flag::kPartial);
   EXPECT_EQ(s7.channel_fresh, 0x38U);
-  EXPECT_EQ(s7.count16[0], 0);  // nothing known yet for A's channels
-  EXPECT_EQ(s7.count16[4], 4007);
+  EXPECT_EQ(s7.position[0], 0);  // nothing known yet for A's channels
+  EXPECT_EQ(s7.position[4], 4007);
   const EncoderSample s8 = take();
   EXPECT_EQ(s8.flags, 0U);
   EXPECT_EQ(s8.channel_fresh, 0x3FU);
@@ -185,8 +185,8 @@ TEST_F(Decoder, MissingHoldsCountsAndCarriesEventFlags) {
   dec.make_missing(m, 4 * kMs, 5 * kMs);
   EXPECT_FALSE(m.present);
   EXPECT_EQ(m.flags, flag::kMissing | flag::kDuplicate);
-  EXPECT_EQ(m.board_seq, 3);
-  EXPECT_EQ(m.count16[5], 5003);
+  EXPECT_EQ(m.seq, 3);
+  EXPECT_EQ(m.position[5], 5003);
   EXPECT_EQ(m.channel_fresh, 0U);
   EXPECT_EQ(m.mono_ns, 4 * kMs);
   EXPECT_EQ(m.wall_ns, 5 * kMs);
@@ -203,7 +203,7 @@ TEST_F(Decoder, IndexLatchBitsAndIndexFramesMerge) {
   EncoderSample s = take();
   EXPECT_EQ(s.index_latched, (1U << 0) | (1U << 4));
   EXPECT_EQ(s.index_count_valid, 1U << 4);
-  EXPECT_EQ(s.index_count16[4], 0x2710);
+  EXPECT_EQ(s.index_position[4], 0x2710);
   EXPECT_EQ(dec.detail().index_frames, 1);
 
   // INDEX after its cycle completed but before it was taken.
@@ -211,7 +211,7 @@ TEST_F(Decoder, IndexLatchBitsAndIndexFramesMerge) {
   dec.on_frame(can::encode_index(0, 0x1111, 31));
   s = take();
   EXPECT_EQ(s.index_count_valid, 1U << 0);
-  EXPECT_EQ(s.index_count16[0], 0x1111);
+  EXPECT_EQ(s.index_position[0], 0x1111);
   EXPECT_EQ(s.index_latched, 0U);
 
   // INDEX of a cycle already taken: carried by the next sample.
@@ -221,8 +221,8 @@ TEST_F(Decoder, IndexLatchBitsAndIndexFramesMerge) {
   dec.on_frame(counts(1, 32, 32 * kMs));
   s = take();
   EXPECT_EQ(s.index_count_valid, (1U << 1) | (1U << 2));
-  EXPECT_EQ(s.index_count16[1], 0x3333);
-  EXPECT_EQ(s.index_count16[2], 0x2222);
+  EXPECT_EQ(s.index_position[1], 0x3333);
+  EXPECT_EQ(s.index_position[2], 0x2222);
 
   // Early INDEX (cycle not started) waits for its cycle.
   dec.on_frame(can::encode_index(3, 0x4444, 34));
@@ -231,7 +231,7 @@ TEST_F(Decoder, IndexLatchBitsAndIndexFramesMerge) {
   cycle(34, 34 * kMs);
   s = take();
   EXPECT_EQ(s.index_count_valid, 1U << 3);
-  EXPECT_EQ(s.index_count16[3], 0x4444);
+  EXPECT_EQ(s.index_position[3], 0x4444);
 }
 
 TEST_F(Decoder, HeartbeatErrorsRaiseBoardErrorWhileSet) {
@@ -379,7 +379,7 @@ TEST_F(Decoder, ResyncAfterSilence) {
   // The board restarts 500 ms later with seq 0, which looks "older" than 100.
   cycle(0, 600 * kMs);
   const EncoderSample s = take();
-  EXPECT_EQ(s.board_seq, 0);
+  EXPECT_EQ(s.seq, 0);
   EXPECT_EQ(s.flags, flag::kSeqGap);
   EXPECT_EQ(dec.detail().resyncs, 1);
   EXPECT_EQ(dec.stats().seq_gaps, 1);
@@ -398,7 +398,7 @@ TEST_F(Decoder, TheOtherHalfAfterASilenceCompletesItsCycle) {
   dec.on_frame(counts(0, 118, 110 * kMs));
   dec.on_frame(counts(1, 118, 295 * kMs));
   const EncoderSample s = take();
-  EXPECT_EQ(s.board_seq, 118);
+  EXPECT_EQ(s.seq, 118);
   EXPECT_EQ(s.flags, 0U);
   EXPECT_EQ(s.channel_fresh, 0x3FU);
   EXPECT_EQ(s.mono_ns, 295 * kMs);
@@ -414,7 +414,7 @@ TEST_F(Decoder, TheOtherHalfAfterASilenceIsLateForItsFlushedCycle) {
   dec.on_frame(counts(0, 118, 110 * kMs));
   EncoderSample s;
   ASSERT_TRUE(dec.flush(s));  // the reader's deadline: PARTIAL
-  EXPECT_EQ(s.board_seq, 118);
+  EXPECT_EQ(s.seq, 118);
   EXPECT_EQ(s.flags, flag::kPartial);
   dec.on_frame(counts(1, 118, 295 * kMs));  // 185 ms later
   EXPECT_EQ(dec.queued(), 0);
@@ -424,7 +424,7 @@ TEST_F(Decoder, TheOtherHalfAfterASilenceIsLateForItsFlushedCycle) {
   EXPECT_EQ(dec.detail().resyncs, 0);
   cycle(119, 300 * kMs);
   const EncoderSample n = take();
-  EXPECT_EQ(n.board_seq, 119);
+  EXPECT_EQ(n.seq, 119);
   EXPECT_EQ(n.flags, flag::kOutOfOrder);
   // A board that restarts after the silence with another seq still resyncs.
   cycle(3, 900 * kMs);
@@ -440,7 +440,7 @@ TEST_F(Decoder, ResyncAfterConsecutiveRejectsWithoutStamps) {
   cycle(4, 0);
   cycle(5, 0);
   EncoderSample s = take();
-  EXPECT_EQ(s.board_seq, 4);
+  EXPECT_EQ(s.seq, 4);
   EXPECT_EQ(s.flags, flag::kSeqGap | flag::kOutOfOrder);
   EXPECT_EQ(take().flags, 0U);
   EXPECT_EQ(dec.stats().out_of_order, 8);
@@ -451,7 +451,7 @@ TEST_F(Decoder, QueueOverflowDropsTheOldest) {
   for (int k = 0; k < BoardDecoder::kQueueCapacity + 2; ++k) cycle(k, k * kMs);
   EXPECT_EQ(dec.queued(), BoardDecoder::kQueueCapacity);
   EXPECT_EQ(dec.detail().queue_overflows, 2);
-  EXPECT_EQ(take().board_seq, 2);
+  EXPECT_EQ(take().seq, 2);
 }
 
 TEST_F(Decoder, BoardOffsetDecoderIgnoresOtherBoards) {
@@ -463,7 +463,7 @@ TEST_F(Decoder, BoardOffsetDecoderIgnoresOtherBoards) {
   b1.on_frame(can::encode_counts(1, {4, 5, 6}, 0, 1, cfg.ids));
   EncoderSample s;
   ASSERT_TRUE(b1.poll_sample(s));
-  EXPECT_EQ(s.count16[5], 6);
+  EXPECT_EQ(s.position[5], 6);
   EXPECT_EQ(b1.stats().bad_frames, 1);
 }
 

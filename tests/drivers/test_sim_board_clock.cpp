@@ -88,9 +88,9 @@ TEST(SimBoardClock, InStepWithTheReaderItIsTheDefaultBoard) {
     ASSERT_EQ(aligned.read(t, a), ReadStatus::kSample);
     ASSERT_EQ(own.read(t, b), ReadStatus::kSample);
     ASSERT_EQ(a.mono_ns, b.mono_ns) << k;
-    ASSERT_EQ(a.board_seq, b.board_seq);
-    ASSERT_EQ(a.count16, b.count16) << k;
-    ASSERT_EQ(a.index_count16, b.index_count16) << k;
+    ASSERT_EQ(a.seq, b.seq);
+    ASSERT_EQ(a.position, b.position) << k;
+    ASSERT_EQ(a.index_position, b.index_position) << k;
     ASSERT_EQ(a.flags, b.flags) << k;
     ASSERT_EQ(own.backlog(), 0);
   }
@@ -105,7 +105,7 @@ TEST(SimBoardClock, ALateReaderFindsEveryCycleQueuedAndTakesThemOldestFirst) {
   EncoderSample s;
   // Cycle 0 at 300 µs: the reader waits (half a period at most) for it.
   ASSERT_EQ(src.read(at(kStart, kStart + 20'000), s), ReadStatus::kSample);
-  EXPECT_EQ(s.board_seq, 0);
+  EXPECT_EQ(s.seq, 0);
   EXPECT_EQ(s.mono_ns, kStart + 300'000);
   EXPECT_EQ(src.backlog(), 0);
   // The reader is back 10 ms after deadline 1: cycles 1 .. 10 are there (cycle
@@ -113,7 +113,7 @@ TEST(SimBoardClock, ALateReaderFindsEveryCycleQueuedAndTakesThemOldestFirst) {
   CycleTime t = at(kStart + kMs, kStart + 11 * kMs);
   for (std::int64_t k = 1; k <= 10; ++k) {
     ASSERT_EQ(src.read(t, s), ReadStatus::kSample) << k;
-    EXPECT_EQ(s.board_seq, k);
+    EXPECT_EQ(s.seq, k);
     EXPECT_EQ(s.mono_ns, kStart + k * kMs + 300'000);
     EXPECT_EQ(s.wall_ns, s.mono_ns + 7);
     EXPECT_EQ(s.flags, 0U) << k;
@@ -147,7 +147,7 @@ TEST(SimBoardClock, AStallLeavesTheCyclesOfItsDurationQueued) {
     longest = std::max(longest, std::chrono::steady_clock::now() - t0);
     int in_this_read = 0;
     while (r == ReadStatus::kSample) {
-      ASSERT_EQ(s.board_seq, delivered % 256);
+      ASSERT_EQ(s.seq, delivered % 256);
       ++delivered;
       ++in_this_read;
       if (src.backlog() == 0) break;
@@ -176,7 +176,7 @@ TEST(SimBoardClock, ASlowBoardClockGivesReadsWithNothingDueNeverMissing) {
     ReadStatus r = src.read(t, s);
     if (r == ReadStatus::kNothingDue) ++nothing_due;
     while (r == ReadStatus::kSample) {
-      ASSERT_EQ(s.board_seq, delivered % 256) << k;
+      ASSERT_EQ(s.seq, delivered % 256) << k;
       ++delivered;
       if (src.backlog() == 0) break;
       t.catch_up = true;

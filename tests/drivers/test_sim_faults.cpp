@@ -142,7 +142,7 @@ TEST(SimFaults, DelayedFramesReachTheReaderOneCycleLateStampedWhenTheyArrived) {
     ASSERT_EQ(st, ReadStatus::kSample) << k;
     const bool late = k > 1000 && k < 1100;
     const std::int64_t seq = late ? k - 1 : k;
-    EXPECT_EQ(s.board_seq, seq & 0xFF) << k;
+    EXPECT_EQ(s.seq, seq & 0xFF) << k;
     EXPECT_EQ(s.mono_ns, o.start_mono_ns + seq * 1'000'000 + (late ? 700'000 : 0)) << k;
   }
   EXPECT_EQ(src.stats().missing_samples, 1);

@@ -83,7 +83,7 @@ TEST(SimSource, TwentyThousandCyclesMatchTruthWithinOneCountAndAllocateNothing) 
     }
     ASSERT_EQ(st, ReadStatus::kSample);
     ASSERT_TRUE(s.present);
-    ASSERT_EQ(s.board_seq, k & 0xFF);
+    ASSERT_EQ(s.seq, k & 0xFF);
     ++samples;
     if (previous_lost) ++expected_gaps;
     ASSERT_EQ((s.flags & flag::kSeqGap) != 0, previous_lost) << k;
@@ -98,7 +98,7 @@ TEST(SimSource, TwentyThousandCyclesMatchTruthWithinOneCountAndAllocateNothing) 
     for (std::size_t j = 0; j < 6; ++j) {
       const auto ch = static_cast<std::size_t>(o.encoders[j].channel);
       if ((s.channel_fresh & (1U << ch)) == 0) continue;  // held from an older cycle
-      unwrapped[j] = exodaq::unwrap16(unwrapped[j], s.count16[ch]);
+      unwrapped[j] = exodaq::unwrap16(unwrapped[j], s.position[ch]);
       // The count the floor formula gives at the true angle, exactly...
       ASSERT_EQ(unwrapped[j], src.rig().encoders().count_at(static_cast<int>(j), truth.position[j]))
           << "k " << k << " joint " << j;
@@ -111,7 +111,7 @@ TEST(SimSource, TwentyThousandCyclesMatchTruthWithinOneCountAndAllocateNothing) 
         ++index_seen[j];
         EXPECT_TRUE(s.index_latched & (1U << ch));
         // Homing crosses the index instance n = 0.
-        EXPECT_EQ(s.index_count16[ch],
+        EXPECT_EQ(s.index_position[ch],
                   static_cast<std::uint16_t>(
                       src.rig().encoders().count_at_index(static_cast<int>(j), 0) & 0xFFFF));
       }
@@ -156,15 +156,15 @@ TEST(SimSource, DeterministicForASeedAndRestartable) {
   std::vector<std::uint16_t> first;
   for (int k = 0; k < 3000; ++k) {
     ASSERT_EQ(a.read({}, sa), b.read({}, sb));
-    ASSERT_EQ(sa.count16, sb.count16);
+    ASSERT_EQ(sa.position, sb.position);
     ASSERT_EQ(sa.flags, sb.flags);
     ASSERT_EQ(sa.mono_ns, sb.mono_ns);
-    first.push_back(sa.count16[3]);
+    first.push_back(sa.position[3]);
   }
   a.start();  // rewinds to power-up
   for (int k = 0; k < 3000; ++k) {
     a.read({}, sa);
-    ASSERT_EQ(sa.count16[3], first[static_cast<std::size_t>(k)]);
+    ASSERT_EQ(sa.position[3], first[static_cast<std::size_t>(k)]);
   }
   o.seed = 43;
   SimSource c(o);
@@ -215,7 +215,7 @@ TEST(SimSource, StallBlocksTheReadThatReachesItsStart) {
     if (k == 11) cycle_11 = std::chrono::steady_clock::now() - t0;
     ASSERT_EQ(reference.read({}, r), ReadStatus::kSample);
     ASSERT_EQ(s.mono_ns, r.mono_ns);
-    ASSERT_EQ(s.count16, r.count16);
+    ASSERT_EQ(s.position, r.position);
     ASSERT_EQ(s.flags, r.flags);
   }
   EXPECT_GE(cycle_11, std::chrono::milliseconds(200));

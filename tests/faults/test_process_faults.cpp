@@ -401,7 +401,7 @@ TEST(ProcessFault, FreeRunningBoardThroughALoopStallLosesNothing) {
       raw_holes += raws[i].seq - raws[i - 1].seq - 1;
     }
     EXPECT_TRUE(raws[i].present) << "seq " << raws[i].seq;
-    EXPECT_EQ(raws[i].board_seq, raws[i].seq % 256) << "seq " << raws[i].seq;
+    EXPECT_EQ(raws[i].source_seq, raws[i].seq % 256) << "seq " << raws[i].seq;
   }
   EXPECT_LE(raw_holes, t.publish_failures + drops);
   // The stall's samples LATE: the longest run of LATE samples, counted in

@@ -32,7 +32,7 @@ struct Sent {
 };
 
 void check_sample(const drv::EncoderSample& s, const Sent& sent) {
-  FUZZ_CHECK(s.board_seq >= -1 && s.board_seq <= 255);
+  FUZZ_CHECK(s.seq >= -1 && s.seq <= 255);
   FUZZ_CHECK((s.channel_fresh & ~0x3FU) == 0);
   FUZZ_CHECK((s.index_latched & ~0x3FU) == 0);
   FUZZ_CHECK((s.index_count_valid & ~0x3FU) == 0);
@@ -42,19 +42,24 @@ void check_sample(const drv::EncoderSample& s, const Sent& sent) {
     return;
   }
   FUZZ_CHECK((s.flags & flag::kMissing) == 0);
-  FUZZ_CHECK(s.board_seq >= 0);
+  FUZZ_CHECK(s.seq >= 0);
   if ((s.flags & flag::kPartial) != 0) {
     FUZZ_CHECK(s.channel_fresh == 0x07U || s.channel_fresh == 0x38U);
   } else {
     FUZZ_CHECK(s.channel_fresh == 0x3FU);
   }
-  const auto seq = static_cast<std::size_t>(s.board_seq);
+  const auto seq = static_cast<std::size_t>(s.seq);
+  FUZZ_CHECK(s.seq_modulus == 256);
+  for (std::size_t c = 0; c < 6; ++c) {
+    FUZZ_CHECK(s.modulus[c] == 65536 && s.position[c] >= 0 && s.position[c] < 65536);
+  }
+  const auto u16 = [&s](int c) {
+    return static_cast<std::uint16_t>(s.position[static_cast<std::size_t>(c)]);
+  };
   for (int half = 0; half < 2; ++half) {
     const std::uint32_t bits = half == 0 ? 0x07U : 0x38U;
     if ((s.channel_fresh & bits) == 0) continue;
-    const std::array<std::uint16_t, 3> got{s.count16[static_cast<std::size_t>(3 * half)],
-                                           s.count16[static_cast<std::size_t>(3 * half + 1)],
-                                           s.count16[static_cast<std::size_t>(3 * half + 2)]};
+    const std::array<std::uint16_t, 3> got{u16(3 * half), u16(3 * half + 1), u16(3 * half + 2)};
     const auto& seen = sent.by_seq[seq][static_cast<std::size_t>(half)];
     FUZZ_CHECK(std::find(seen.begin(), seen.end(), got) != seen.end());
   }

@@ -16,6 +16,7 @@
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/messages/lcm_log.hpp"
 #include "exodaq/messages/message.hpp"
+#include "exodaq_v1/encoder_raw_t.hpp"
 #include "sample_messages.hpp"
 
 namespace can = exodaq::drivers::can;
@@ -56,6 +57,22 @@ Buf frame_input(unsigned selector, const can::CanFrame& f) {
 
 exodaq::encoder_raw_t raw_message(std::int64_t seq) {
   return exodaq::test::raw_message(seq, 0x1234);
+}
+
+// The same cycle as version 1 wrote it (recordings made before version 2).
+exodaq_v1::encoder_raw_t raw_message_v1(std::int64_t seq) {
+  const exodaq::encoder_raw_t m = raw_message(seq);
+  exodaq_v1::encoder_raw_t v1{};
+  v1.utime = m.utime;
+  v1.mono_ns = m.mono_ns;
+  v1.seq = m.seq;
+  v1.run_id = m.run_id;
+  v1.present = m.present;
+  v1.board_seq = static_cast<std::int16_t>(m.source_seq);
+  for (int c = 0; c < 6; ++c) v1.count16[c] = static_cast<std::int16_t>(m.position[c]);
+  v1.board_state = m.board_state;
+  v1.wall_ns = m.wall_ns;
+  return v1;
 }
 
 template <typename T>
@@ -178,6 +195,7 @@ int main(int argc, char** argv) {
     auto t = encoded(raw_message(44));
     t.erase(t.end() - 5, t.end());
     write(d, "truncated", t);
+    write(d, "v1-sample", encoded(raw_message_v1(45)));
   }
 
   // replay_file: small LCM logs (the candump seeds are text, checked in).
@@ -204,6 +222,9 @@ int main(int argc, char** argv) {
     prefixed.push_back({"RIG2/EXO_ENCODER_RAW", encoded(other)});
     prefixed.push_back({"RIG2/EXO_ENCODER_RAW", Buf{1, 2, 3}});
     write_lcm_log(d / "lcm_prefixed_other_run.lcm", prefixed);
+    std::vector<std::pair<std::string, Buf>> v1;
+    for (int s = 1; s <= 4; ++s) v1.push_back({"EXO_ENCODER_RAW", encoded(raw_message_v1(s))});
+    write_lcm_log(d / "lcm_version1.lcm", v1);
   }
   std::printf("seeds written under %s\n", root.c_str());
   return 0;

@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
       for (int i = 0; i < 6; ++i) {
         j.position[i] = 0.001 * static_cast<double>(seq % 1000) + 0.1 * i;
         j.velocity[i] = 0.5 + 0.01 * i;
-        j.raw_count[i] = r.count16[i];
+        j.raw_count[i] = r.position[i];
         j.homed[i] = 1;
       }
       put(joint_ch, j);

@@ -12,6 +12,7 @@
 #include "exodaq/drivers/sim_rig.hpp"
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
+#include "exodaq_v1/encoder_raw_t.hpp"
 #include "process.hpp"
 #include "replay_support.hpp"
 
@@ -77,11 +78,12 @@ TEST(ReplayCandump, SimRigFramesReplayBitExact) {
   for (std::int64_t i = 0; i < kCycles; ++i) {
     const EncoderSample& g = got[static_cast<std::size_t>(i)];
     ASSERT_TRUE(g.present);
-    EXPECT_EQ(g.board_seq, static_cast<std::int16_t>(i & 0xFF));
+    EXPECT_EQ(g.seq, static_cast<std::int16_t>(i & 0xFF));
     EXPECT_EQ(g.wall_ns, cd.stamp_ns[static_cast<std::size_t>(i)]);
     EXPECT_NE(g.flags & sample_flag::kReplay, 0U);
     for (std::size_t c = 0; c < 6; ++c) {
-      ASSERT_EQ(g.count16[c], static_cast<std::uint16_t>(cd.counts[static_cast<std::size_t>(i)][c]))
+      ASSERT_EQ(g.position[c],
+                static_cast<std::uint16_t>(cd.counts[static_cast<std::size_t>(i)][c]))
           << "cycle " << i << " channel " << c;
     }
   }
@@ -168,16 +170,18 @@ TEST(ReplayCandump, MalformedLinesAreNumberedCountedAndSkipped) {
   EXPECT_EQ(src.read(CycleTime{}, s), ReadStatus::kEndOfStream);
 }
 
-TEST(ReplayLcm, DecodesEncoderRawFieldForField) {
+// A recording of version 1 (protocol v1's frame), as the daemon wrote them
+// before version 2: read as protocol v1's moduli.
+TEST(ReplayLcm, DecodesEncoderRawVersion1FieldForField) {
   const std::string dir = temp_dir();
   std::vector<test::LogEvent> log;
   // The daemon's start-up warm-up: all zero.
-  exodaq::encoder_raw_t warm{};
+  exodaq_v1::encoder_raw_t warm{};
   log.push_back(event("X_EXO_ENCODER_RAW", warm));
   log.push_back(event("OTHER", warm));
-  std::vector<exodaq::encoder_raw_t> sent;
+  std::vector<exodaq_v1::encoder_raw_t> sent;
   for (int k = 0; k < 50; ++k) {
-    exodaq::encoder_raw_t r{};
+    exodaq_v1::encoder_raw_t r{};
     r.utime = 1'700'000'000'000'000 + k * 1000 + 7;
     r.mono_ns = 5'000'000'000 + k * 1'000'017;
     r.seq = k < 20 ? k : k + 3;  // three cycles skipped by the live loop
@@ -206,7 +210,7 @@ TEST(ReplayLcm, DecodesEncoderRawFieldForField) {
     log.push_back(event("X_EXO_ENCODER_RAW", r));
     sent.push_back(r);
   }
-  exodaq::encoder_raw_t other = sent.back();
+  exodaq_v1::encoder_raw_t other = sent.back();
   other.run_id = 0x9999;
   other.seq = 0;
   log.push_back(event("X_EXO_ENCODER_RAW", other));
@@ -232,10 +236,12 @@ TEST(ReplayLcm, DecodesEncoderRawFieldForField) {
     EXPECT_EQ(s.mono_ns, r.mono_ns);
     EXPECT_EQ(s.wall_ns, r.utime * 1000);
     EXPECT_EQ(s.present, r.present != 0);
-    EXPECT_EQ(s.board_seq, r.board_seq);
+    EXPECT_EQ(s.seq, r.board_seq);
+    EXPECT_EQ(s.seq_modulus, 256);
     for (int c = 0; c < 6; ++c) {
-      EXPECT_EQ(static_cast<std::int16_t>(s.count16[static_cast<std::size_t>(c)]), r.count16[c]);
-      EXPECT_EQ(static_cast<std::int16_t>(s.index_count16[static_cast<std::size_t>(c)]),
+      EXPECT_EQ(s.modulus[static_cast<std::size_t>(c)], 65536);
+      EXPECT_EQ(static_cast<std::int16_t>(s.position[static_cast<std::size_t>(c)]), r.count16[c]);
+      EXPECT_EQ(static_cast<std::int16_t>(s.index_position[static_cast<std::size_t>(c)]),
                 r.index_count16[c]);
     }
     EXPECT_EQ(s.index_latched, static_cast<std::uint32_t>(r.index_latched));
@@ -245,6 +251,65 @@ TEST(ReplayLcm, DecodesEncoderRawFieldForField) {
     std::uint32_t expected = static_cast<std::uint32_t>(r.source_flags) | sample_flag::kReplay;
     if (r.seq == 25 + 3) expected |= sample_flag::kLate;  // k == 25
     EXPECT_EQ(s.flags, expected) << "seq " << r.seq;
+  }
+  EXPECT_EQ(src.read(CycleTime{}, s), ReadStatus::kEndOfStream);
+}
+
+// Version 2: any protocol's positions, moduli, references and fresh channels,
+// field for field; a position outside its modulus is damage, counted and named.
+TEST(ReplayLcm, DecodesEncoderRawVersion2FieldForField) {
+  const std::string dir = temp_dir();
+  std::vector<test::LogEvent> log;
+  log.push_back(event("X_EXO_ENCODER_RAW", exodaq::encoder_raw_t{}));  // start-up
+  std::vector<exodaq::encoder_raw_t> sent;
+  constexpr std::int64_t k32 = std::int64_t{1} << 32;
+  for (int k = 0; k < 20; ++k) {
+    exodaq::encoder_raw_t r{};
+    r.utime = 1'700'000'000'000'000 + k * 1000;
+    r.mono_ns = 5'000'000'000 + k * 1'000'000;
+    r.seq = k;
+    r.run_id = 0x1234;
+    r.present = 1;
+    r.source_seq = (238 + k) % 240;
+    r.source_seq_modulus = 240;
+    for (int c = 0; c < 6; ++c) {
+      r.modulus[c] = c < 3 ? k32 : 0;
+      r.position[c] = c < 3 ? (k32 - 10 + k * (c + 1)) % k32 : -5'000'000'000 + k;
+      r.index_position[c] = c == 1 ? 77 : 0;
+    }
+    r.index_count_valid = k == 7 ? 0x02 : 0;
+    r.absolute = 0x38;
+    r.channel_fresh = k == 9 ? 0x07 : 0x3F;
+    r.source_flags = k == 9 ? static_cast<std::int32_t>(sample_flag::kPartial) : 0;
+    log.push_back(event("X_EXO_ENCODER_RAW", r));
+    sent.push_back(r);
+  }
+  exodaq::encoder_raw_t damaged = sent.back();
+  damaged.seq = 20;
+  damaged.position[0] = k32;  // not below its modulus
+  log.push_back(event("X_EXO_ENCODER_RAW", damaged));
+  test::write_log(dir + "/raw2.lcm", log);
+
+  ReplaySource src = make(dir + "/raw2.lcm");
+  src.start();
+  ASSERT_EQ(src.sample_count(), 20);
+  ASSERT_EQ(src.issues().size(), 1U);
+  EXPECT_NE(src.issues()[0].what.find("outside its modulus"), std::string::npos)
+      << src.issues()[0].what;
+  EXPECT_TRUE(src.issues()[0].problem);
+  EncoderSample s;
+  for (const auto& r : sent) {
+    ASSERT_EQ(src.read(CycleTime{}, s), ReadStatus::kSample);
+    EXPECT_EQ(s.seq, r.source_seq);
+    EXPECT_EQ(s.seq_modulus, 240);
+    for (std::size_t c = 0; c < 6; ++c) {
+      EXPECT_EQ(s.position[c], r.position[c]) << "seq " << r.seq << " channel " << c;
+      EXPECT_EQ(s.modulus[c], r.modulus[c]);
+      EXPECT_EQ(s.index_position[c], r.index_position[c]);
+    }
+    EXPECT_EQ(s.index_count_valid, static_cast<std::uint32_t>(r.index_count_valid));
+    EXPECT_EQ(s.absolute, 0x38U);
+    EXPECT_EQ(s.channel_fresh, static_cast<std::uint32_t>(r.channel_fresh));  // as recorded
   }
   EXPECT_EQ(src.read(CycleTime{}, s), ReadStatus::kEndOfStream);
 }

@@ -20,6 +20,7 @@
 #include "exodaq/encoder_raw_t.hpp"
 #include "exodaq/joint_state_t.hpp"
 #include "exodaq/palm_pose_t.hpp"
+#include "exodaq_v1/encoder_raw_t.hpp"
 #include "process.hpp"
 #include "replay_support.hpp"
 
@@ -54,9 +55,10 @@ void add_sample(Digest& d, const EncoderSample& s) {
   d.num(s.mono_ns);
   d.num(s.wall_ns);
   d.num(s.present);
-  d.num(s.board_seq);
-  for (std::size_t c = 0; c < 6; ++c) d.num(s.count16[c]);
-  for (std::size_t c = 0; c < 6; ++c) d.num(s.index_count16[c]);
+  // Protocol v1's widths, as the goldens below were taken with.
+  d.num(static_cast<std::int16_t>(s.seq));
+  for (std::size_t c = 0; c < 6; ++c) d.num(static_cast<std::uint16_t>(s.position[c]));
+  for (std::size_t c = 0; c < 6; ++c) d.num(static_cast<std::uint16_t>(s.index_position[c]));
   d.num(s.index_latched);
   d.num(s.index_count_valid);
   d.num(s.channel_fresh);
@@ -144,7 +146,7 @@ std::string write_lcm_session(const std::string& dir, const std::string& name, i
                               bool with_joint_state) {
   const std::string raw_channel = "RIG1_EXO_ENCODER_RAW";
   std::vector<test::LogEvent> log;
-  log.push_back(event(raw_channel, encoder_raw_t{}));  // start-up message
+  log.push_back(event(raw_channel, exodaq_v1::encoder_raw_t{}));  // start-up message
   std::int64_t seq = 0;
   std::array<std::int64_t, 6> count{};
   std::uint32_t rng = 12345;
@@ -155,7 +157,7 @@ std::string write_lcm_session(const std::string& dir, const std::string& name, i
   std::size_t damage_at = 0;
   for (int k = 0; k < cycles; ++k) {
     seq += (k % 997 == 500) ? 4 : 1;  // the live loop skipped 3 cycles
-    encoder_raw_t r{};
+    exodaq_v1::encoder_raw_t r{};
     r.utime = 1'700'000'000'000'000 + seq * 1000 + static_cast<std::int64_t>(next() % 40);
     r.mono_ns = 2'000'000'000 + seq * 1'000'000 + static_cast<std::int64_t>(next() % 30'000);
     r.seq = seq;
@@ -199,7 +201,7 @@ std::string write_lcm_session(const std::string& dir, const std::string& name, i
       log.push_back(event("RIG1_EXO_PALM_POSE", p));
     }
     if (k == cycles / 3) {
-      encoder_raw_t other = r;
+      exodaq_v1::encoder_raw_t other = r;
       other.run_id = 0xbeef;
       other.seq = 2;
       log.push_back(event(raw_channel, other));
@@ -210,7 +212,7 @@ std::string write_lcm_session(const std::string& dir, const std::string& name, i
       test::LogEvent bad = event(raw_channel, r);
       bad.data.resize(20);
       log.push_back(bad);
-      encoder_raw_t future = r;
+      exodaq_v1::encoder_raw_t future = r;
       future.utime = INT64_MAX / 100;
       test::LogEvent damaged_utime = event(raw_channel, future);
       damaged_utime.timestamp = r.utime;  // the recorder's own stamp stays plausible
@@ -343,12 +345,12 @@ TEST(ReplayStreaming, CandumpSessionSameAsWholeFileLoad) {
                 {11997, 17, 0x4a7e5e917394ffddULL, 0x2f1cc9e1e2b247f5ULL});
 }
 
-// A long session as the daemon publishes it, written fast: the raw channel
+// A long session as the daemon published it before version 2, written fast: the raw channel
 // only, 138 bytes an event.
 std::string write_long_lcm(const std::string& dir, std::int64_t cycles) {
   std::string path = dir + "/long.lcm";
   messages::LogWriter log(path);
-  encoder_raw_t r{};
+  exodaq_v1::encoder_raw_t r{};
   r.run_id = 0x5eed;
   r.present = true;
   std::vector<std::uint8_t> buf(static_cast<std::size_t>(r.getEncodedSize()));

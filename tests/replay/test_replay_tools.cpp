@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -943,6 +944,60 @@ TEST(ReplayCandumpTool, SimFramesReplayToTheTruthWithinOneCount) {
   // Every joint homed for the last two seconds at least.
   EXPECT_GT(checked, 6 * 2000);
   EXPECT_TRUE(joints.rbegin()->second.homed[5]);
+}
+
+// A recording made before encoder_raw_t version 2: tests/replay/fixtures/
+// v1-sim-10000.lcm is seq 10000..10499 of a live run of the exodaqd of that
+// time on v1-sim.yaml (recorded by exodaq record; the homing record of seq
+// 10000, five joints homed, the sixth homing at seq 10229). Its replay
+// reproduces the joint states and palm poses that daemon published, bit for
+// bit, and re-publishes its raw samples as version 2.
+TEST(ReplayLcm, ARecordingOfVersion1ReplaysToItsLiveValuesBitForBit) {
+  const std::string fixtures = std::string(EXODAQ_SOURCE_DIR) + "/tests/replay/fixtures";
+  const std::string in = fixtures + "/v1-sim-10000.lcm";
+  const std::string out = make_temp_dir("replay-v1") + "/replay.lcm";
+  const RunResult r = exodaq({"replay", in, "-c", fixtures + "/v1-sim.yaml", "-o", out});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("homing: continued from the live run's record of seq 10000"),
+            std::string::npos)
+      << r.out;
+  const auto live = read_log(in);
+  const auto replay = read_log(out);
+  const auto live_joint = messages_by_seq<joint_state_t>(live, "EXO_JOINT_STATE");
+  const auto live_palm = messages_by_seq<palm_pose_t>(live, "EXO_PALM_POSE");
+  const auto rep_joint = messages_by_seq<joint_state_t>(replay, "EXO_JOINT_STATE");
+  const auto rep_palm = messages_by_seq<palm_pose_t>(replay, "EXO_PALM_POSE");
+  const auto rep_raw = messages_by_seq<encoder_raw_t>(replay, "EXO_ENCODER_RAW");
+  ASSERT_EQ(live_joint.size(), 499U);
+  ASSERT_EQ(rep_joint.size(), live_joint.size());
+  ASSERT_EQ(rep_raw.size(), live_joint.size());
+  constexpr int kWindow = 21;  // velocity_window: the live fit had samples before the excerpt
+  std::array<int, 6> fresh{};
+  std::size_t valid = 0;
+  for (const auto& [seq, lj] : live_joint) {
+    ASSERT_EQ(rep_joint.count(seq), 1U) << "seq " << seq;
+    joint_state_t rj = rep_joint.at(seq);
+    EXPECT_EQ(rj.sample_flags & kSampleReplay, kSampleReplay);
+    rj.sample_flags &= ~kSampleReplay;
+    for (std::size_t j = 0; j < 6; ++j) {
+      if ((lj.flags[j] & joint_state_t::JOINT_HELD) == 0) ++fresh[j];
+      if (fresh[j] < kWindow) rj.velocity[j] = lj.velocity[j];
+    }
+    ASSERT_EQ(bytes_of(rj), bytes_of(lj)) << "joint_state_t at seq " << seq;
+    ASSERT_EQ(bytes_of(rep_palm.at(seq)), bytes_of(live_palm.at(seq))) << "palm at seq " << seq;
+    valid += live_palm.at(seq).valid ? 1 : 0;
+    // Version 2 of the same sample: protocol v1's moduli, no absolute channel.
+    const encoder_raw_t& raw = rep_raw.at(seq);
+    EXPECT_EQ(raw.source_seq_modulus, 256);
+    for (std::size_t c = 0; c < 6; ++c) {
+      EXPECT_EQ(raw.modulus[c], 65536);
+      EXPECT_TRUE(raw.position[c] >= 0 && raw.position[c] < 65536);
+    }
+    EXPECT_EQ(raw.absolute, 0);
+  }
+  EXPECT_FALSE(live_joint.begin()->second.homed[5]);  // the sixth joint homes in the excerpt
+  EXPECT_TRUE(live_joint.rbegin()->second.homed[5]);
+  EXPECT_GT(valid, 200U);
 }
 }  // namespace
 }  // namespace exodaq::test

@@ -139,16 +139,16 @@ void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
     }
     ++s->raws;
     if (!m.present) ++s->not_present;
-    if (m.present && m.board_seq >= 0) {
+    if (m.present && m.source_seq >= 0) {
       if (s->raw_last_seq >= 0 && m.seq > s->raw_last_seq) {
         // d cycles on, the board seq should be d on as well (one board sample a cycle).
         const std::int64_t d = m.seq - s->raw_last_seq;
         s->raw_lost += d - 1;
-        const std::int64_t board_d = ((m.board_seq - s->raw_last_board_seq) % 256 + 256) % 256;
+        const std::int64_t board_d = ((m.source_seq - s->raw_last_board_seq) % 256 + 256) % 256;
         s->board_seq_skips += ((board_d - d) % 256 + 256) % 256;
       }
       s->raw_last_seq = m.seq;
-      s->raw_last_board_seq = m.board_seq;
+      s->raw_last_board_seq = m.source_seq;
     }
   } else if (ch == s->prefix + "EXO_STATUS") {
     exodaq::status_t m;

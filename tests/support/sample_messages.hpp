@@ -7,8 +7,9 @@
 
 namespace exodaq::test {
 
-// Cycle `seq` of run `run_id` at 1 kHz: present, board sequence seq mod 256,
-// channel c's count 100 c + seq, board state 1, no index, no flags.
+// Cycle `seq` of run `run_id` at 1 kHz, as protocol v1 delivers it: present,
+// board sequence seq mod 256, channel c's count 100 c + seq mod 65536, every
+// channel fresh, board state 1, no index, no flags.
 inline encoder_raw_t raw_message(std::int64_t seq, std::int64_t run_id = 0x5eed) {
   encoder_raw_t m{};
   m.utime = 1'700'000'000'000'000 + seq * 1000;
@@ -16,8 +17,13 @@ inline encoder_raw_t raw_message(std::int64_t seq, std::int64_t run_id = 0x5eed)
   m.seq = seq;
   m.run_id = run_id;
   m.present = 1;
-  m.board_seq = static_cast<std::int16_t>(seq & 0xFF);
-  for (int c = 0; c < 6; ++c) m.count16[c] = static_cast<std::int16_t>(100 * c + seq);
+  m.source_seq = seq & 0xFF;
+  m.source_seq_modulus = 256;
+  for (int c = 0; c < 6; ++c) {
+    m.position[c] = (100 * c + seq) & 0xFFFF;
+    m.modulus[c] = 65536;
+  }
+  m.channel_fresh = 0x3F;
   m.board_state = 1;
   m.wall_ns = m.utime * 1000;
   return m;

@@ -154,10 +154,13 @@ class Recorder {
     r.raw = true;
     r.utime_raw = m->utime;
     r.present = m->present;
-    r.board_seq = m->board_seq;
+    r.board_seq = static_cast<int>(m->source_seq);  // protocol v1: 0..255
     r.wall_ns = m->wall_ns;
     r.source_flags = static_cast<std::uint32_t>(m->source_flags);
-    for (int i = 0; i < 6; ++i) r.count16[static_cast<std::size_t>(i)] = m->count16[i];
+    for (int i = 0; i < 6; ++i) {  // protocol v1's positions: 16 bits
+      r.count16[static_cast<std::size_t>(i)] =
+          static_cast<std::int16_t>(static_cast<std::uint16_t>(m->position[i]));
+    }
   }
   void palm(const lcm::ReceiveBuffer*, const std::string&, const exodaq::palm_pose_t* m) {
     Rec& r = at(m->seq);

@@ -133,8 +133,10 @@ bool read_replay(const std::string& path, std::vector<Cycle>& out) {
       if (m.decode(ev->data, 0, static_cast<int>(ev->datalen)) < 0) return false;
       Cycle& c = by_seq[m.seq];
       c.present = m.present;
-      c.board_seq = m.board_seq;
-      for (std::size_t j = 0; j < 6; ++j) c.count16[j] = m.count16[j];
+      c.board_seq = static_cast<int>(m.source_seq);  // protocol v1: 0..255
+      for (std::size_t j = 0; j < 6; ++j) {          // protocol v1's positions: 16 bits
+        c.count16[j] = static_cast<std::int16_t>(static_cast<std::uint16_t>(m.position[j]));
+      }
       parts[m.seq] |= 2;
     }
   }

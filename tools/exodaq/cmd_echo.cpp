@@ -131,10 +131,13 @@ class Table {
     }
     if (raw_) {
       const auto& e = *raw_;
-      std::string counts;
-      for (int i = 0; i < wire::kJointCount; ++i) counts += " " + std::to_string(e.count16[i]);
-      std::snprintf(buf, sizeof buf, "raw      present %s  board_seq %d  count16%s",
-                    e.present ? "yes" : "no", e.board_seq, counts.c_str());
+      std::string positions;
+      for (int i = 0; i < wire::kJointCount; ++i) {
+        positions += " " + std::to_string(e.position[i]);
+      }
+      std::snprintf(buf, sizeof buf, "raw      present %s  source_seq %lld  position%s",
+                    e.present ? "yes" : "no", static_cast<long long>(e.source_seq),
+                    positions.c_str());
       lines.emplace_back(buf);
     }
     if (status_) {

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "exodaq/common/wrapping.hpp"
 #include "recording.hpp"
 
 namespace exodaq::drivers::replay {
@@ -16,7 +17,7 @@ namespace {
 
 // span * k / d without overflowing (0 < k < d <= 127; a file's stamps may be
 // decades apart): the same value as the plain expression would give.
-std::int64_t fraction_of(std::int64_t span, int k, int d) noexcept {
+std::int64_t fraction_of(std::int64_t span, std::int64_t k, std::int64_t d) noexcept {
   return span / d * k + span % d * k / d;
 }
 
@@ -148,13 +149,12 @@ class CandumpPass {
 
 bool CandumpPass::push(EncoderSample s) {
   s.flags |= sample_flag::kReplay;
-  if (have_previous_ && s.present && previous_.board_seq >= 0 && s.board_seq >= 0 &&
+  if (have_previous_ && s.present && previous_.seq >= 0 && s.seq >= 0 &&
       (s.flags & sample_flag::kSeqGap) != 0) {
     // The board's cycles in between never reached the bus: replay them as
     // the live loop saw them, missing samples evenly spaced in the gap.
-    const int d = can::seq_delta(static_cast<std::uint8_t>(previous_.board_seq),
-                                 static_cast<std::uint8_t>(s.board_seq));
-    for (int k = 1; k < d; ++k) {
+    const std::int64_t d = wrapped_delta(previous_.seq, s.seq, s.seq_modulus);
+    for (std::int64_t k = 1; k < d; ++k) {
       Entry m;
       m.sample = previous_;
       m.sample.present = false;

@@ -102,8 +102,9 @@ class LcmLoader {
   bool have_pending_ = false;
   bool have_counts_ = false;
   std::array<std::int64_t, kChannelCount> travel_{};
-  std::array<std::uint16_t, kChannelCount> last16_{};
+  std::array<std::int64_t, kChannelCount> last_position_{};
   encoder_raw_t raw_;
+  messages::RawVersion raw_version_ = messages::RawVersion::kNone;
   joint_state_t joint_;
   bool have_run_ = false;
   std::int64_t other_run_id_ = 0;
@@ -212,7 +213,8 @@ void LcmLoader::on_joint_state(const messages::LogEvent& ev) {
 }
 
 void LcmLoader::on_raw(const messages::LogEvent& ev) {
-  if (!messages::decode_into(raw_, ev.data, ev.size)) {
+  raw_version_ = messages::decode_encoder_raw(raw_, ev.data, ev.size);
+  if (raw_version_ == messages::RawVersion::kNone) {
     ++out_.stats.bad_frames;
     out_.note(ev.number, "event on " + raw_channel_ + " does not decode as exodaq.encoder_raw_t");
     return;
@@ -224,6 +226,12 @@ void LcmLoader::on_raw(const messages::LogEvent& ev) {
     ++out_.stats.bad_frames;
     out_.note(ev.number,
               "event on " + raw_channel_ + " has an impossible utime or seq (damaged log)");
+    return;
+  }
+  if (!messages::positions_in_range(raw_)) {
+    ++out_.stats.bad_frames;
+    out_.note(ev.number, "event on " + raw_channel_ +
+                             " has a position or sequence outside its modulus (damaged log)");
     return;
   }
   if (messages::is_startup_message({raw_.utime, raw_.mono_ns, raw_.seq, raw_.run_id}) &&
@@ -287,7 +295,8 @@ void LcmLoader::add_loop_info(EncoderSample& s) {
     // after an overrun, and it flags the next cycle LATE.
     s.flags |= sample_flag::kLate;
   }
-  if (s.present && (s.flags & sample_flag::kPartial) != 0) {
+  if (s.present && (s.flags & sample_flag::kPartial) != 0 &&
+      raw_version_ == messages::RawVersion::kV1) {
     add_partial_channels(s, have_info, info);
   }
 }
@@ -300,15 +309,15 @@ void LcmLoader::add_partial_channels(EncoderSample& s, bool have_info, const Loo
         fresh |= 1U << static_cast<unsigned>(context_.joints[j].channel);
       }
     }
-    s.channel_fresh = fresh & 0x3FU;
+    s.channel_fresh = fresh & kAllChannels;
     return;
   }
-  // encoder_raw_t does not say which half arrived: the half whose counts
+  // Version 1 does not say which half arrived: the half whose counts
   // moved; if neither moved, COUNTS_A (it is sent first).
   std::uint32_t moved = 0;
   if (have_previous_) {
     for (unsigned c = 0; c < static_cast<unsigned>(kChannelCount); ++c) {
-      if (s.count16[c] != previous_.count16[c]) moved |= 1U << c;
+      if (s.position[c] != previous_.position[c]) moved |= 1U << c;
     }
   }
   s.channel_fresh = (moved & 0x07U) != 0 || (moved & 0x38U) == 0 ? 0x07U : 0x38U;
@@ -336,8 +345,8 @@ void LcmLoader::on_homing(const messages::LogEvent& ev) {
 // this very cycle, logged before it, is taken.
 void LcmLoader::follow_counts(const EncoderSample& s) {
   for (std::size_t c = 0; c < kChannelCount; ++c) {
-    if (have_counts_) travel_[c] += count_delta16(last16_[c], s.count16[c]);
-    last16_[c] = s.count16[c];
+    if (have_counts_) travel_[c] += wrapped_delta(last_position_[c], s.position[c], s.modulus[c]);
+    last_position_[c] = s.position[c];
   }
   have_counts_ = true;
   if (!have_pending_ || out_.summary.resumed_at_seq >= 0) return;

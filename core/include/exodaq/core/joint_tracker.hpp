@@ -1,6 +1,8 @@
 #pragma once
-// One joint's path from encoder counts to a calibrated angle: 16-bit unwrap,
-// index homing (seed 000 eq. 4: theta = delta_theta0 + theta_R), velocity
+// One joint's path from encoder counts to a calibrated angle: unwrapping at the
+// source's stated modulus, homing (seed 000 eq. 4: theta = delta_theta0 +
+// theta_R) on an index or, for an absolute encoder, on its zero at the first
+// sample, velocity
 // estimate, and the per-joint faults (stale, glitch, out of range, lost
 // counts). Integer counts end to end; angles are derived, never accumulated.
 // Allocation-free after construction; runs on the loop thread.
@@ -39,7 +41,7 @@ enum class HomingState : std::int8_t {
 
 // No strings here: configs are copied on the loop thread at a reload.
 struct JointTrackerConfig {
-  int channel = 0;                      // encoder channel on the board (0..5)
+  int channel = 0;                      // the source's channel (0..kJointCount-1)
   int direction = 1;                    // +1 or -1: encoder count sign relative to the joint angle
   std::int64_t counts_per_rev = 10000;  // encoder counts per encoder revolution (CPR x 4)
   double gear_ratio = 1.0;              // encoder revolutions per joint revolution
@@ -49,8 +51,8 @@ struct JointTrackerConfig {
   double upper_rad = 3.14159;
   double limit_margin_rad = 0.0349;  // out-of-range margin beyond the limits
   double max_speed_rad_s = 5.0;      // glitch bound (already including its margin)
-  // The board's sample period (0: unknown). The glitch bound's interval is the
-  // longer of the receive instants' and the board cycles' (docs/operations.md, GLITCH).
+  // The source's sample period (0: unknown). The glitch bound's interval is the
+  // longer of the receive instants' and the source cycles' (docs/operations.md, GLITCH).
   std::int64_t board_period_ns = 0;
   std::int64_t index_tolerance_counts = 2;
   std::int64_t stale_ns = 20'000'000;
@@ -101,6 +103,24 @@ struct HomingReference {
   }
 };
 
+// One joint's channel of one cycle's sample (encoder_sample.hpp says what
+// each field means).
+struct JointInput {
+  std::int64_t mono_ns = 0;
+  std::int64_t seq = -1;  // the source's cycle sequence, -1: none
+  std::int64_t seq_modulus = 0;
+  bool fresh = false;  // a new position arrived for this joint this cycle
+  std::int64_t position = 0;
+  std::int64_t modulus = 0;
+  bool index_valid = false;  // index_position holds the position latched at an index edge
+  std::int64_t index_position = 0;
+  bool absolute = false;  // homed on the encoder's zero at the first position, no index
+  bool board_error = false;
+};
+
+// Channel `channel` of `sample`.
+JointInput joint_input(const drivers::EncoderSample& sample, int channel) noexcept;
+
 // One event a tracker wants logged (off the loop thread).
 enum class JointEvent : std::uint8_t {
   kNone,
@@ -122,12 +142,8 @@ class JointTracker {
   // and the homing (the reference index count stays; its angle is re-derived).
   void reconfigure(const JointTrackerConfig& config) noexcept;
 
-  // One cycle. `fresh`: a new count arrived for this joint this cycle.
-  // `index_valid`: index_count16 holds the count latched at an index edge.
-  // `board_seq`: the sample's board cycle (0..255, -1: none).
-  // Returns the most important event of the cycle (kNone usually).
-  JointEvent update(std::int64_t sample_mono_ns, int board_seq, bool fresh, std::uint16_t count16,
-                    bool index_valid, std::uint16_t index_count16, bool board_error) noexcept;
+  // One cycle. Returns the most important event of the cycle (kNone usually).
+  JointEvent update(const JointInput& in) noexcept;
 
   // Continues a live run from a recording's first sample (replay): the first
   // count is unwrapped next to r.count, the homing reference is r's. Before
@@ -140,11 +156,13 @@ class JointTracker {
   const JointTrackerConfig& config() const noexcept { return config_; }
 
  private:
-  void take_count(std::int64_t t_ns, int board_seq, std::uint16_t count16,
-                  JointEvent& event) noexcept;
+  void take_count(const JointInput& in, JointEvent& event) noexcept;
   // How long the joint had to move since its last fresh count.
-  std::int64_t interval_since_fresh(std::int64_t t_ns, int board_seq) const noexcept;
+  std::int64_t interval_since_fresh(const JointInput& in) const noexcept;
   void home_on_index(std::int64_t index_count, JointEvent& event) noexcept;
+  // An absolute encoder: its zero (count 0) is the reference, taken at the
+  // first count; the turn is the one that puts the joint nearest its home.
+  void home_absolute(JointEvent& event) noexcept;
   // Homed: the index verifies the count, or re-homes when counts were lost.
   void check_index(std::int64_t t_ns, std::int64_t index_count, JointEvent& event) noexcept;
   void update_reading(std::int64_t t_ns, bool fresh, bool board_error, JointEvent& event) noexcept;
@@ -157,7 +175,7 @@ class JointTracker {
   bool have_count_ = false;
   std::int64_t count_ = 0;
   std::int64_t last_fresh_ns_ = 0;
-  int last_fresh_board_seq_ = -1;
+  std::int64_t last_fresh_seq_ = -1;
   std::int64_t powerup_count_ = 0;
   bool resume_pending_ = false;  // resume(): the first count continues resume_count_
   std::int64_t resume_count_ = 0;

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "exodaq/common/count16.hpp"
+#include "exodaq/common/wrapping.hpp"
 
 namespace exodaq::drivers::can {
 
@@ -235,7 +235,7 @@ CanFrame encode_error(const ErrorPayload& err) noexcept;
 // Counter arithmetic
 // ---------------------------------------------------------------------------
 
-// 16-bit counts and 8-bit board sequences: exodaq/common/count16.hpp.
+// 16-bit counts and 8-bit board sequences: exodaq/common/wrapping.hpp.
 using exodaq::count_delta16;
 using exodaq::seq_delta;
 using exodaq::unwrap16;

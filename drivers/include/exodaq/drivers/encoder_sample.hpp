@@ -31,18 +31,30 @@ inline constexpr std::uint32_t kForeignRun = w::SAMPLE_FOREIGN_RUN;
 inline constexpr std::uint32_t kNewSegment = w::SAMPLE_NEW_SEGMENT;
 }  // namespace sample_flag
 
+// Bit c set for every channel.
+inline constexpr std::uint32_t kAllChannels = (1U << kChannelCount) - 1U;
+
+// One cycle as any protocol delivers it. Positions are encoder counts; a
+// channel whose counter wraps states its modulus (protocol v1: 65536) and its
+// position lies in [0, modulus); modulus 0: the position is the whole count.
+// A channel is homed on index latches (incremental encoders) unless its
+// `absolute` bit is set (no homing: its calibration offset applies from the
+// first sample). The source's cycle sequence wraps at seq_modulus likewise.
 struct EncoderSample {
   // The sample instant: kernel receive time of the count frame on SocketCAN, the
   // simulated sample instant on sim, the recorded instant on replay.
-  std::int64_t mono_ns = 0;     // CLOCK_MONOTONIC
-  std::int64_t wall_ns = 0;     // CLOCK_REALTIME as the source saw it, 0 when the source has none
-  bool present = false;         // false: nothing arrived; counts repeat the last sample
-  std::int16_t board_seq = -1;  // 0..255, -1 before the first sample
-  std::array<std::uint16_t, kChannelCount> count16{};        // low 16 bits as sent
-  std::array<std::uint16_t, kChannelCount> index_count16{};  // latched at the index edge
+  std::int64_t mono_ns = 0;      // CLOCK_MONOTONIC
+  std::int64_t wall_ns = 0;      // CLOCK_REALTIME as the source saw it, 0 when the source has none
+  bool present = false;          // false: nothing arrived; positions repeat the last sample
+  std::int64_t seq = -1;         // the source's cycle sequence, -1 before the first sample
+  std::int64_t seq_modulus = 0;  // seq lies in [0, seq_modulus); 0: it does not wrap
+  std::array<std::int64_t, kChannelCount> position{};        // counts, as sent
+  std::array<std::int64_t, kChannelCount> modulus{};         // 0: not wrapped
+  std::array<std::int64_t, kChannelCount> index_position{};  // latched at the index edge
   std::uint32_t index_latched = 0;      // bit c: index of channel c latched since last sample
-  std::uint32_t index_count_valid = 0;  // bit c: index_count16[c] came with this sample
-  std::uint32_t channel_fresh = 0x3F;   // bit c: count16[c] arrived this cycle (partial samples)
+  std::uint32_t index_count_valid = 0;  // bit c: index_position[c] came with this sample
+  std::uint32_t absolute = 0;           // bit c: position[c] is absolute (no index homing)
+  std::uint32_t channel_fresh = kAllChannels;  // bit c: position[c] arrived this cycle
   std::uint32_t board_state = 0;
   std::uint32_t board_errors = 0;
   std::uint32_t flags = 0;  // sample_flag bits

@@ -247,7 +247,8 @@ def _summary(channel, msg):
             channel, msg.seq, msg.valid, names.invalid_reason_names(msg.invalid_reason),
             " ".join("%8.2f" % (p * 1e3) for p in msg.position), msg.shoulder_manipulability)
     if t == "encoder_raw_t":
-        return "%s seq %d present %d count16 %s" % (channel, msg.seq, msg.present, msg.count16)
+        return "%s seq %d present %d position %s" % (channel, msg.seq, msg.present,
+                                                     list(msg.position))
     if t == "homing_t":
         return "%s seq %d changed %d homing %s index_count %s" % (
             channel, msg.seq, msg.changed, list(msg.homing), list(msg.index_count))
