@@ -3,8 +3,6 @@
 namespace exodaq::drivers::can {
 namespace {
 
-constexpr std::uint32_t kStandardIdMask = 0x7FF;
-
 void put_u16(std::array<std::uint8_t, kMaxClassicDlc>& d, int at, std::uint16_t v) noexcept {
   d[static_cast<std::size_t>(at)] = static_cast<std::uint8_t>(v & 0xFF);
   d[static_cast<std::size_t>(at) + 1] = static_cast<std::uint8_t>(v >> 8);
@@ -89,18 +87,12 @@ std::string_view to_string(Reject reason) noexcept {
 }
 
 Decoded decode(const CanFrame& f, const ProtocolIds& ids) noexcept {
-  if ((f.flags & frame_flag::kError) != 0) {
+  {
     Decoded out;
-    out.kind = FrameKind::kError;
-    out.error.classes = f.id & err_class::kMask;
-    out.error.lost_arb_bit = f.data[0];
-    out.error.controller = f.data[1];
-    out.error.protocol_type = f.data[2];
-    out.error.protocol_location = f.data[3];
-    out.error.transceiver = f.data[4];
-    out.error.tx_error_count = f.data[6];
-    out.error.rx_error_count = f.data[7];
-    return out;
+    if (decode_error(f, out.error)) {
+      out.kind = FrameKind::kError;
+      return out;
+    }
   }
   if ((f.flags & frame_flag::kFd) != 0) return rejected(Reject::kFd);
   if ((f.flags & frame_flag::kRtr) != 0) return rejected(Reject::kRtr);
@@ -182,19 +174,15 @@ CanFrame encode_heartbeat(const HeartbeatPayload& hb, std::uint8_t dlc,
   return f;
 }
 
-CanFrame encode_error(const ErrorPayload& err) noexcept {
-  CanFrame f;
-  f.id = err.classes & err_class::kMask;
-  f.flags = frame_flag::kError;
-  f.dlc = kErrorFrameDlc;
-  f.data[0] = err.lost_arb_bit;
-  f.data[1] = err.controller;
-  f.data[2] = err.protocol_type;
-  f.data[3] = err.protocol_location;
-  f.data[4] = err.transceiver;
-  f.data[6] = err.tx_error_count;
-  f.data[7] = err.rx_error_count;
-  return f;
+CanIdFilterSet port_filters(const ProtocolIds& ids, bool receive_sync) noexcept {
+  CanIdFilterSet set;
+  const auto block = [&set](std::uint32_t id) { set.add({id & 0x7E0U, 0x7E0U}); };
+  block(ids.counts_a_id());
+  block(ids.counts_b_id());
+  block(ids.heartbeat_id());
+  for (int c = 0; c < kBoardChannels; ++c) block(ids.index_id(c));
+  if (receive_sync) block(ids.sync_id());
+  return set;
 }
 
 }  // namespace exodaq::drivers::can

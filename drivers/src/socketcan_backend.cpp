@@ -72,14 +72,13 @@ int socketcan_board(const SourceOptions& options) noexcept {
 SocketCanSourceConfig socketcan_config_from(const SocketCanSettings& settings,
                                             const SourceContext& /*context*/) {
   SocketCanSourceConfig c;
+  c.decoder.ids.board = static_cast<std::uint32_t>(settings.board);
   c.port.interface = settings.interface;
-  c.port.ids.board = static_cast<std::uint32_t>(settings.board);
-  c.port.receive_sync = !settings.sync_master;
+  c.port.filters = can::port_filters(c.decoder.ids, !settings.sync_master);
   c.port.rcvbuf_bytes = settings.rcvbuf_bytes;
   c.sync_master = settings.sync_master;
   c.read_deadline_ns = static_cast<std::int64_t>(settings.read_deadline_us * 1000.0);
   c.reopen_interval_ns = static_cast<std::int64_t>(settings.reopen_interval_ms * 1e6);
-  c.decoder.ids = c.port.ids;
   return c;
 }
 

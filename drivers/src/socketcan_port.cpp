@@ -166,30 +166,19 @@ class SocketCanPort final : public CanPort {
     std::memcpy(f.data.data(), cf.data, 8);
   }
 
-  // The aligned 32-ID blocks holding the board's IDs (see can_port.hpp).
-  int filters(std::array<can_filter, 12>& out) const noexcept {
-    const can::ProtocolIds& ids = config_.ids;
-    std::array<std::uint32_t, 11> wanted{ids.counts_a_id(), ids.counts_b_id(), ids.heartbeat_id()};
-    int n = 3;
-    for (int c = 0; c < can::kBoardChannels; ++c)
-      wanted[static_cast<std::size_t>(n++)] = ids.index_id(c);
-    if (config_.receive_sync) wanted[static_cast<std::size_t>(n++)] = ids.sync_id();
-    int count = 0;
-    for (int i = 0; i < n; ++i) {
-      const std::uint32_t block = wanted[static_cast<std::size_t>(i)] & 0x7E0U;
-      bool seen = false;
-      for (int j = 0; j < count; ++j)
-        seen = seen || out[static_cast<std::size_t>(j)].can_id == block;
-      if (seen) continue;
-      out[static_cast<std::size_t>(count)].can_id = block;
-      out[static_cast<std::size_t>(count)].can_mask = 0x7E0U;
-      ++count;
+  // The protocol's filters (can_port.hpp); none: nothing but error frames.
+  int filters(std::array<can_filter, can::CanIdFilterSet::kCapacity>& out) const noexcept {
+    const can::CanIdFilterSet& set = config_.filters;
+    for (int i = 0; i < set.count; ++i) {
+      const can::CanIdFilter& f = set.filters[static_cast<std::size_t>(i)];
+      out[static_cast<std::size_t>(i)].can_id = f.id;
+      out[static_cast<std::size_t>(i)].can_mask = f.mask;
     }
-    return count;
+    return set.count;
   }
 
   int configure(int fd, unsigned index) noexcept {
-    std::array<can_filter, 12> f{};
+    std::array<can_filter, can::CanIdFilterSet::kCapacity> f{};
     const int nf = filters(f);
     if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, f.data(),
                    static_cast<socklen_t>(static_cast<std::size_t>(nf) * sizeof(can_filter))) < 0) {

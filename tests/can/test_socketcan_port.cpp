@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "exodaq/common/clock_now.hpp"
+#include "exodaq/drivers/can_codec.hpp"
 #include "exodaq/drivers/can_port.hpp"
 
 namespace exodaq::drivers {
@@ -63,9 +64,11 @@ struct Peer {
   int fd = -1;
 };
 
+// Board 0's frames, as the socketcan backend asks for them (sync master).
 CanPortConfig config() {
   CanPortConfig c;
   c.interface = iface();
+  c.filters = can::port_filters(can::ProtocolIds{}, false);
   return c;
 }
 
@@ -149,8 +152,9 @@ TEST(SocketCanPort, TwoBoardsOneBusEachPortHearsItsOwnBoard) {
   REQUIRE_VCAN();
   CanPortConfig ca = config();
   CanPortConfig cb = config();
-  cb.ids.board = 1;
-  cb.receive_sync = true;
+  can::ProtocolIds board1;
+  board1.board = 1;
+  cb.filters = can::port_filters(board1, true);
   auto a = make_socketcan_port(ca);
   auto b = make_socketcan_port(cb);
   ASSERT_EQ(a->open(), 0);

@@ -105,9 +105,14 @@ TEST(SocketCanSource, ConfigFromSettings) {
   s.read_deadline_us = 250;
   const SocketCanSourceConfig c = socketcan_config_from(s, SourceContext{});
   EXPECT_EQ(c.port.interface, "can1");
-  EXPECT_EQ(c.port.ids.counts_a_id(), 0x1A1U);
   EXPECT_EQ(c.decoder.ids.counts_a_id(), 0x1A1U);
-  EXPECT_TRUE(c.port.receive_sync);
+  // Board 1's blocks and SYNC's (another node is sync master).
+  EXPECT_TRUE(c.port.filters.passes(0x1A1U));
+  EXPECT_TRUE(c.port.filters.passes(0x1B5U));
+  EXPECT_TRUE(c.port.filters.passes(0x721U));
+  EXPECT_TRUE(c.port.filters.passes(0x080U));
+  EXPECT_FALSE(c.port.filters.passes(0x181U));
+  EXPECT_FALSE(c.port.filters.passes(0x701U));
   EXPECT_FALSE(c.sync_master);
   EXPECT_EQ(c.read_deadline_ns, 250'000);
   EXPECT_EQ(c.reopen_interval_ns, 1'000'000'000);

@@ -33,20 +33,16 @@ constexpr std::int64_t kFollowerPhase = 700'000;  // rig B's deadlines come this
 constexpr std::int64_t kAnswerNs = 50'000;        // SYNC to a board's first frame
 constexpr std::int64_t kSlotNs = 30'000;          // one frame on the wire (simplified)
 
-// The socket's filter as docs/can-protocol.md gives it for the real port: the
-// aligned 32-ID blocks (mask 0x7E0) holding the board's COUNTS, INDEX and
-// HEARTBEAT IDs, plus SYNC's block when another node is sync master; error
+// The socket's filter as the real port applies it (CAN_RAW_FILTER from
+// config.filters: for protocol v1 the aligned 32-ID blocks holding the
+// board's IDs, plus SYNC's block when another node is sync master); error
 // frames always. (The real port's filter is checked on a kernel vcan in
 // test_socketcan_port.cpp, inside the VM.)
 std::function<bool(const CanFrame&)> kernel_filter(const CanPortConfig& c) {
-  std::vector<std::uint32_t> ids{c.ids.counts_a_id(), c.ids.counts_b_id(), c.ids.heartbeat_id()};
-  for (int ch = 0; ch < can::kBoardChannels; ++ch) ids.push_back(c.ids.index_id(ch));
-  if (c.receive_sync) ids.push_back(c.ids.sync_id());
-  std::vector<std::uint32_t> blocks;
-  for (std::uint32_t id : ids) blocks.push_back(id & 0x7E0U);
-  return [blocks](const CanFrame& f) {
+  const can::CanIdFilterSet filters = c.filters;
+  return [filters](const CanFrame& f) {
     if ((f.flags & can::frame_flag::kError) != 0) return true;
-    return std::find(blocks.begin(), blocks.end(), f.id & 0x7E0U) != blocks.end();
+    return filters.passes(f.id);
   };
 }
 

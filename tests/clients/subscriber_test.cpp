@@ -4,6 +4,7 @@
 #include "exodaq/messages/channels.hpp"
 #include "exodaq/messages/csv.hpp"
 #include "exodaq/messages/flag_names.hpp"
+#include "exodaq_v1/encoder_raw_t.hpp"
 
 #include <gtest/gtest.h>
 
@@ -115,11 +116,12 @@ TEST(MessageList, EveryKindIsItselfEverywhere) {
 // The wire formats: a change here is a change of every recording and every
 // client's generated types (an LCM fingerprint covers the names and types of
 // all fields). Types added to the list later are covered by the test above.
+// encoder_raw_t is version 2; version 1 keeps its fingerprint (below).
 TEST(MessageList, FingerprintsOfTheFirstFiveTypesAreUnchanged) {
   const std::pair<messages::Kind, std::uint64_t> golden[] = {
       {messages::Kind::kJointState, 0x3abbf41b00120c0aULL},
       {messages::Kind::kPalmPose, 0x45316e9d1908ff1dULL},
-      {messages::Kind::kEncoderRaw, 0x2b9ba15490a8aeb1ULL},
+      {messages::Kind::kEncoderRaw, 0xca36c9169b3356d1ULL},
       {messages::Kind::kStatus, 0xabf6b6946b45ab99ULL},
       {messages::Kind::kHoming, 0x5849a47166a8619eULL}};
   const auto all = every_kind();
@@ -129,6 +131,13 @@ TEST(MessageList, FingerprintsOfTheFirstFiveTypesAreUnchanged) {
     for (int i = 0; i < 8; ++i) got = (got << 8) | static_cast<unsigned char>(bytes[i]);
     EXPECT_EQ(got, fp) << messages::type_name(k);
   }
+  // Version 1 of encoder_raw_t: what every recording made before version 2
+  // holds, still recognised by its fingerprint.
+  EXPECT_EQ(static_cast<std::uint64_t>(exodaq_v1::encoder_raw_t::getHash()), 0x2b9ba15490a8aeb1ULL);
+  const exodaq_v1::encoder_raw_t v1{};
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(v1.getEncodedSize()));
+  v1.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  EXPECT_EQ(messages::kind_of_payload(bytes.data(), bytes.size()), messages::Kind::kEncoderRaw);
 }
 
 TEST(MessageList, PerCycleKindsAreTheCycleStreams) {
@@ -220,10 +229,12 @@ TEST(CsvSchema, GoldenHeadersOfEachKind) {
             "near_singular,palm_valid,palm_invalid_reason");
   EXPECT_TRUE(std::equal(palm.begin() + 4, palm.end(), cycle.begin() + joint.size()));
   EXPECT_EQ(joined(messages::csv::header(messages::Kind::kEncoderRaw, j)),
-            "utime_us,mono_ns,seq,run_id,present,board_seq,count16_ch0,count16_ch1,count16_ch2,"
-            "count16_ch3,count16_ch4,count16_ch5,index_count16_ch0,index_count16_ch1,"
-            "index_count16_ch2,index_count16_ch3,index_count16_ch4,index_count16_ch5,"
-            "index_latched,index_count_valid,board_state,board_errors,source_flags,wall_ns");
+            "utime_us,mono_ns,seq,run_id,present,source_seq,source_seq_modulus,position_ch0,"
+            "position_ch1,position_ch2,position_ch3,position_ch4,position_ch5,modulus_ch0,"
+            "modulus_ch1,modulus_ch2,modulus_ch3,modulus_ch4,modulus_ch5,index_position_ch0,"
+            "index_position_ch1,index_position_ch2,index_position_ch3,index_position_ch4,"
+            "index_position_ch5,index_latched,index_count_valid,absolute,channel_fresh,"
+            "board_state,board_errors,source_flags,wall_ns");
   const auto status = messages::csv::header(messages::Kind::kStatus, j);
   EXPECT_EQ(status.size(), 4u + 4 + 9 + 27 + 6 * 6);
   EXPECT_EQ(status[4], "rig");

@@ -170,8 +170,7 @@ int run_main(int argc, char** argv) {
     std::signal(SIGINT, on_signal);
     exodaq::drivers::CanPortConfig pc;
     pc.interface = cli.iface;
-    pc.ids = options.board.ids;
-    pc.receive_sync = true;
+    pc.filters = exodaq::drivers::can::port_filters(options.board.ids, true);
     const auto port = exodaq::drivers::make_socketcan_port(pc);
     BoardSim board(options, *port, truth.get());
     std::fprintf(stderr, "exodaq-board-sim: %s on %s, board %u, period %lld ns, %zu faults\n",

@@ -13,7 +13,7 @@
 #include <memory>
 #include <string>
 
-#include "exodaq/drivers/can_codec.hpp"
+#include "exodaq/drivers/can_frame.hpp"
 
 namespace exodaq::drivers {
 
@@ -26,11 +26,11 @@ struct CanRxInfo {
   int unstamped = 0;
 };
 
-// How the port was opened (the backend's filters and buffers).
+// How the port was opened: the protocol's identifier filters (the frames
+// it wants; every other node's traffic stays in the kernel) and buffers.
 struct CanPortConfig {
   std::string interface = "can0";
-  can::ProtocolIds ids{};
-  bool receive_sync = false;  // admit SYNC frames (another node is sync master)
+  can::CanIdFilterSet filters{};
   int rcvbuf_bytes = 1 << 20;
 };
 
@@ -77,12 +77,8 @@ inline bool is_interface_loss(int err) noexcept {
   return err == ENETDOWN || err == ENODEV || err == ENXIO || err == ENETUNREACH || err == EBADF;
 }
 
-// The real port: a CAN_RAW socket (Linux only). Filters: the aligned 32-ID
-// blocks (mask 0x7E0) that hold the board's COUNTS, INDEX and HEARTBEAT IDs
-// (and SYNC's when receive_sync), so frames addressed to the board but
-// malformed — wrong DLC, an unused ID in its block, RTR, 29-bit — still
-// reach the decoder and are counted, while other nodes' traffic stays in the
-// kernel. Error frames: CAN_RAW_ERR_FILTER = can::err_class::kSubscribed.
+// The real port: a CAN_RAW socket (Linux only). Filters: config.filters
+// (CAN_RAW_FILTER). Error frames: CAN_RAW_ERR_FILTER = can::err_class::kSubscribed.
 // Timestamps: SO_TIMESTAMPING software RX (falls back to SO_TIMESTAMPNS).
 std::unique_ptr<CanPort> make_socketcan_port(const CanPortConfig& config);
 

@@ -1,8 +1,10 @@
 #pragma once
 // The `socketcan` encoder backend: protocol v1 frames from an encoder interface
 // board on a CAN interface (can0 on the rig, vcan0 in tests), decoded by the
-// same BoardDecoder the sim backend uses. The socket and the clocks sit behind
-// CanPort (can_port.hpp) so tests drive this class with an in-memory port.
+// same BoardDecoder the sim backend uses, over the SocketCAN transport any
+// CAN protocol uses (CanLink: the port, its re-opening, stamps and waits;
+// can_link.hpp). The socket and the clocks sit behind CanPort (can_port.hpp)
+// so tests drive this class with an in-memory port.
 // One read() per loop wake: re-open a lost port (at most once per
 // reopen_interval_ns, non-blocking), then
 // - sync master: send SYNC (counted late when it leaves more than a tenth of
@@ -25,17 +27,18 @@
 #include <string_view>
 
 #include "exodaq/drivers/board_decoder.hpp"
+#include "exodaq/drivers/can_link.hpp"
 #include "exodaq/drivers/can_port.hpp"
 #include "exodaq/drivers/encoder_source.hpp"
 
 namespace exodaq::drivers {
 
 struct SocketCanSourceConfig {
-  CanPortConfig port{};
+  CanPortConfig port{};  // port.filters: can::port_filters(decoder.ids, !sync_master)
   bool sync_master = true;
   std::int64_t read_deadline_ns = 400'000;  // after the cycle's deadline
   std::int64_t reopen_interval_ns = 1'000'000'000;
-  BoardDecoderConfig decoder{};  // decoder.ids must equal port.ids
+  BoardDecoderConfig decoder{};
 };
 
 // Backend-side counters beyond SourceStats (tests, logs).
@@ -55,7 +58,7 @@ struct SocketCanDetail {
   std::int64_t offset_ns = 0;  // CLOCK_REALTIME − CLOCK_MONOTONIC in use
 };
 
-class SocketCanSource final : public EncoderSource {
+class SocketCanSource final : public EncoderSource, private FrameSink {
  public:
   SocketCanSource(const SocketCanSourceConfig& config, std::unique_ptr<CanPort> port);
 
@@ -78,28 +81,22 @@ class SocketCanSource final : public EncoderSource {
   void stop() noexcept override;
 
   const BoardDecoder& decoder() const noexcept { return decoder_; }
-  SocketCanDetail detail() const noexcept {
-    SocketCanDetail d = detail_;
-    d.superseded_samples = decoder_.stats().superseded_samples;  // the decoder counts them
-    return d;
-  }
+  SocketCanDetail detail() const noexcept;
   const SocketCanSourceConfig& config() const noexcept { return config_; }
 
  private:
-  static constexpr int kBatch = 32;
   // Following a free-running board, receive only while a whole batch of
-  // cycles (at most kBatch / 2) still fits the decoder's queue.
-  static constexpr int kRefillBelow = BoardDecoder::kQueueCapacity - kBatch / 2;
+  // cycles (at most CanLink::kBatch / 2) still fits the decoder's queue.
+  static constexpr int kRefillBelow = BoardDecoder::kQueueCapacity - CanLink::kBatch / 2;
 
-  void measure_offset() noexcept;
-  bool try_open(std::int64_t now_mono) noexcept;
-  void go_down(int err) noexcept;
-  // Receives everything queued; false when the port failed (now down).
-  bool drain() noexcept;
-  void feed(const can::CanFrame& frame) noexcept;
-  bool have_current(std::int64_t sync_mono) const noexcept;
+  // FrameSink: what the link receives goes to the decoder.
+  void on_frame(const can::CanFrame& frame) noexcept override;
+  void on_rx_overflows(std::int64_t dropped) noexcept override;
+  void on_link(bool up) noexcept override;
+  bool wants_more() const noexcept override;
+  bool satisfied() const noexcept override;
+
   void send_sync() noexcept;
-  void receive_until(std::int64_t poll_deadline, std::int64_t sync_mono) noexcept;
   // Closes a lone half as PARTIAL when it is due; true when `out` holds a sample.
   bool flush_partial(bool got, std::int64_t sync_mono, std::int64_t period,
                      EncoderSample& out) noexcept;
@@ -113,19 +110,13 @@ class SocketCanSource final : public EncoderSource {
   bool take_queued(std::int64_t period, EncoderSample& out) noexcept;
 
   SocketCanSourceConfig config_;
-  std::unique_ptr<CanPort> port_;
+  CanLink link_;
   BoardDecoder decoder_;
   SocketCanDetail detail_{};
-  std::array<can::CanFrame, kBatch> rx_{};
   EncoderSample scratch_{};
-  bool up_ = false;
-  std::int64_t last_open_attempt_mono_ = 0;
-  std::int64_t offset_ns_ = 0;
-  std::int64_t offset_width_ns_ = INT64_MAX;
-  bool offset_valid_ = false;
+  std::int64_t sync_mono_ = 0;             // sync master: this cycle's SYNC (satisfied())
   std::int64_t newest_complete_mono_ = 0;  // stamp of the frame that last completed a cycle
   std::int64_t partial_since_mono_ = 0;    // stamp of the half now pending
-  bool socket_may_hold_more_ = false;      // the last drain stopped for room, not for empty
   std::int64_t last_delivered_mono_ = 0;   // free-running: stamp of the last sample delivered
 };
 
