@@ -284,20 +284,7 @@ void BoardDecoder::on_heartbeat(const can::CanFrame& frame,
 void BoardDecoder::on_error(const can::ErrorPayload& err) noexcept {
   ++stats_.source.bus_errors;
   event_flags_ |= sample_flag::kBusError;
-  BusState& state = stats_.source.bus_state;
-  if ((err.classes & can::err_class::kBusOff) != 0) {
-    state = BusState::kOff;
-  } else if ((err.classes & can::err_class::kRestarted) != 0) {
-    state = BusState::kActive;
-  } else if ((err.classes & can::err_class::kCrtl) != 0) {
-    if ((err.controller & (can::err_crtl::kRxPassive | can::err_crtl::kTxPassive)) != 0) {
-      state = BusState::kPassive;
-    } else if ((err.controller & (can::err_crtl::kRxWarning | can::err_crtl::kTxWarning)) != 0) {
-      state = BusState::kWarning;
-    } else if ((err.controller & can::err_crtl::kActive) != 0) {
-      state = BusState::kActive;
-    }
-  }
+  stats_.source.bus_state = can::bus_state_after(stats_.source.bus_state, err);
   if ((err.classes & can::err_class::kCrtl) != 0 &&
       (err.controller & can::err_crtl::kRxOverflow) != 0) {
     ++stats_.source.rx_overflows;

@@ -2,6 +2,19 @@
 
 namespace exodaq::drivers::can {
 
+BusState bus_state_after(BusState current, const ErrorPayload& err) noexcept {
+  namespace ec = err_class;
+  namespace crtl = err_crtl;
+  if ((err.classes & ec::kBusOff) != 0) return BusState::kOff;
+  if ((err.classes & ec::kRestarted) != 0) return BusState::kActive;
+  if ((err.classes & ec::kCrtl) != 0) {
+    if ((err.controller & (crtl::kRxPassive | crtl::kTxPassive)) != 0) return BusState::kPassive;
+    if ((err.controller & (crtl::kRxWarning | crtl::kTxWarning)) != 0) return BusState::kWarning;
+    if ((err.controller & crtl::kActive) != 0) return BusState::kActive;
+  }
+  return current;
+}
+
 bool decode_error(const CanFrame& f, ErrorPayload& out) noexcept {
   if ((f.flags & frame_flag::kError) == 0) return false;
   out = ErrorPayload{};

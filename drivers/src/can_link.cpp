@@ -9,19 +9,6 @@
 
 namespace exodaq::drivers {
 
-BusState bus_state_after(BusState current, const can::ErrorPayload& err) noexcept {
-  namespace ec = can::err_class;
-  namespace crtl = can::err_crtl;
-  if ((err.classes & ec::kBusOff) != 0) return BusState::kOff;
-  if ((err.classes & ec::kRestarted) != 0) return BusState::kActive;
-  if ((err.classes & ec::kCrtl) != 0) {
-    if ((err.controller & (crtl::kRxPassive | crtl::kTxPassive)) != 0) return BusState::kPassive;
-    if ((err.controller & (crtl::kRxWarning | crtl::kTxWarning)) != 0) return BusState::kWarning;
-    if ((err.controller & crtl::kActive) != 0) return BusState::kActive;
-  }
-  return current;
-}
-
 CanLink::CanLink(std::unique_ptr<CanPort> port, std::string interface,
                  std::int64_t reopen_interval_ns)
     : port_(std::move(port)),

@@ -7,6 +7,8 @@
 #include <array>
 #include <cstdint>
 
+#include "exodaq/drivers/encoder_sample.hpp"
+
 namespace exodaq::drivers::can {
 
 // ---------------------------------------------------------------------------
@@ -84,6 +86,10 @@ struct ErrorPayload {
   std::uint8_t tx_error_count = 0;     // data[6] (meaningful with kCnt)
   std::uint8_t rx_error_count = 0;     // data[7] (meaningful with kCnt)
 };
+
+// The bus state an error frame leaves (bus-off, restarted, controller
+// warning/passive/active); `current` when the frame says nothing about it.
+BusState bus_state_after(BusState current, const ErrorPayload& error) noexcept;
 
 // The error frame's payload; false for any other frame.
 bool decode_error(const CanFrame& frame, ErrorPayload& out) noexcept;

@@ -49,10 +49,6 @@ struct CanLinkStats {
   std::int64_t offset_ns = 0;  // CLOCK_REALTIME − CLOCK_MONOTONIC in use
 };
 
-// The bus state an error frame leaves (bus-off, restarted, controller
-// warning/passive/active); `current` when the frame says nothing about it.
-BusState bus_state_after(BusState current, const can::ErrorPayload& error) noexcept;
-
 class CanLink {
  public:
   static constexpr int kBatch = 32;
