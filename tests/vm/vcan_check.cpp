@@ -767,10 +767,10 @@ int main(int argc, char** argv) {
       std::int64_t s0 = 0, s1 = 0;
       while (in >> s0 >> s1) windows.emplace_back(s0, s1);
     }
-    // The board simulator writes its truth file through stdio's buffer, so
-    // the line count the scenario read lags the cycles sent by up to a
-    // buffer's worth: a stall's cycles lie between its s0 and the next
-    // stall's s0 (the last: one second of cycles, the stalls' spacing).
+    // The board simulator flushes each truth line as it sends its cycle, so
+    // the scenario's s0..s1 are cycles sent while the daemon was stopped; a
+    // stall's LATE samples are counted up to the next stall's s0 (the last:
+    // one second of cycles, the stalls' spacing), as its catch-up may last.
     for (std::size_t w = 0; w < windows.size(); ++w)
       windows[w].second = w + 1 < windows.size() ? windows[w + 1].first : windows[w].first + rate;
     check_free_running(rec.recs, truth, last, holes, rate, stalls, windows, drops, seen);

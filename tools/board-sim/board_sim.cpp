@@ -57,6 +57,10 @@ void BoardSim::write_truth(std::uint32_t bits) const {
   for (double q : c.position) std::fprintf(truth_, " %.12f", q);
   for (std::int64_t n : c.count) std::fprintf(truth_, " %lld", static_cast<long long>(n));
   std::fprintf(truth_, " %u\n", bits);
+  // Each line as its cycle is sent: a reader counting lines (the VM scenario
+  // holding the daemon off for N board cycles) counts cycles sent, not
+  // whatever a stdio buffer last released.
+  std::fflush(truth_);
 }
 
 std::string BoardSim::summary() const {
