@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "exodaq/drivers/canopen/canopen_backend.hpp"
 #include "exodaq/drivers/replay_backend.hpp"
 #include "exodaq/drivers/sim_backend.hpp"
 #include "exodaq/drivers/socketcan_backend.hpp"
@@ -13,6 +14,7 @@ const std::vector<Backend>& backends() {
       sim_backend(),
       socketcan_backend(),
       replay_backend(),
+      canopen::canopen_backend(),
   };
   return list;
 }

@@ -75,7 +75,7 @@ std::vector<BadCase> cases() {
       {"priority_too_high", 4, "  priority: 120", 4,
        "loop.priority must be 0 (SCHED_OTHER) or a SCHED_FIFO priority 1..99"},
       {"unknown_backend", 6, "  backend: serial", 6,
-       "'backend' must be one of sim, socketcan, replay, found 'serial'"},
+       "'backend' must be one of sim, socketcan, replay, canopen, found 'serial'"},
       {"loss_out_of_range", 8, "    loss_percent: 150", 8,
        "source.sim.loss_percent must be between 0 and 100"},
       {"unknown_sim_key", 8, "    los_percent: 1", 8,
