@@ -107,6 +107,12 @@ void EncoderNodeSim::build_dictionary() noexcept {
     }
     add_entry(c.reference_object, 4, Access::kRo, 0, true);
   }
+  if (c.has_count_object) {
+    if (c.count_object.sub != 0 && !has_index(c.count_object.index)) {
+      add_entry({c.count_object.index, 0}, 1, Access::kRo, c.count_object.sub);
+    }
+    add_entry(c.count_object, 4, Access::kRo, 0, true);
+  }
 }
 
 const EncoderNodeSim::Entry* EncoderNodeSim::find(Multiplexer at) const noexcept {
@@ -153,6 +159,7 @@ std::uint32_t EncoderNodeSim::scaled(std::uint32_t raw) const noexcept {
 
 std::uint32_t EncoderNodeSim::value_of(const Entry& e, const SimPosition& p) const noexcept {
   if (e.at == Multiplexer{od::kPositionValue, 0}) return scaled(p.position);
+  if (config_.has_count_object && e.at == config_.count_object) return scaled(p.position);
   if (config_.has_reference_object && e.at == config_.reference_object) {
     return scaled(p.reference);
   }

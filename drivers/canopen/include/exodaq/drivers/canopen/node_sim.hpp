@@ -55,6 +55,10 @@ struct NodeSimConfig {
   // object, mappable); none when has_reference_object is false.
   bool has_reference_object = false;
   Multiplexer reference_object{0x2100, 1};
+  // Such a module's channel count as a manufacturer-specific object too
+  // (mappable, the same value as 0x6004); none when has_count_object is false.
+  bool has_count_object = false;
+  Multiplexer count_object{0x2000, 1};
   // SYNC producer (0x1005 bit 30): a SYNC every sync_period_ns from boot-up,
   // with a counter when sync_overflow (0x1019) is 2..240.
   bool sync_producer = false;
