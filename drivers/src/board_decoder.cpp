@@ -356,4 +356,22 @@ void BoardDecoder::add_rx_overflows(std::int64_t dropped) noexcept {
   if (dropped > 0) stats_.source.rx_overflows += dropped;
 }
 
+namespace {
+class BoardFrameAssembler final : public FrameAssembler {
+ public:
+  explicit BoardFrameAssembler(const BoardDecoderConfig& config) : decoder_(config) {}
+  void on_frame(const can::CanFrame& frame) noexcept override { decoder_.on_frame(frame); }
+  bool poll(EncoderSample& out) noexcept override { return decoder_.poll_sample(out); }
+  bool finish(EncoderSample& out) noexcept override { return decoder_.flush(out); }
+  SourceStats stats() const noexcept override { return decoder_.stats(); }
+
+ private:
+  BoardDecoder decoder_;
+};
+}  // namespace
+
+std::unique_ptr<FrameAssembler> make_board_frame_assembler(const BoardDecoderConfig& config) {
+  return std::make_unique<BoardFrameAssembler>(config);
+}
+
 }  // namespace exodaq::drivers

@@ -48,6 +48,15 @@ std::unique_ptr<EncoderSource> make_socketcan(const BackendSettings& settings,
   return std::make_unique<SocketCanSource>(config, make_socketcan_port(config.port));
 }
 
+std::unique_ptr<FrameAssembler> socketcan_assembler(const BackendSettings* settings,
+                                                    const SourceContext& /*context*/) {
+  BoardDecoderConfig c;
+  if (const auto* s = dynamic_cast<const SocketCanSettings*>(settings)) {
+    c.ids.board = static_cast<std::uint32_t>(s->board);
+  }
+  return make_board_frame_assembler(c);
+}
+
 }  // namespace
 
 std::string SocketCanSettings::describe() const {
@@ -60,7 +69,7 @@ std::string SocketCanSettings::describe() const {
 }
 
 const Backend& socketcan_backend() {
-  static const Backend b{"socketcan", parse_socketcan, make_socketcan};
+  static const Backend b{"socketcan", parse_socketcan, make_socketcan, socketcan_assembler};
   return b;
 }
 

@@ -26,6 +26,17 @@ const Backend* find_backend(std::string_view name) noexcept {
   return nullptr;
 }
 
+std::function<std::unique_ptr<FrameAssembler>(std::string_view backend)> frame_assemblers(
+    const SourceOptions& options, const SourceContext& context) {
+  SourceContext plain = context;
+  plain.frame_assembler = nullptr;
+  return [options, plain](std::string_view name) -> std::unique_ptr<FrameAssembler> {
+    const Backend* backend = find_backend(name);
+    if (backend == nullptr || !backend->assembler) return nullptr;
+    return backend->assembler(options.section(name), plain);
+  };
+}
+
 std::unique_ptr<EncoderSource> make_source(const SourceOptions& options,
                                            const SourceContext& context) {
   const Backend* backend = find_backend(options.backend);
@@ -34,7 +45,9 @@ std::unique_ptr<EncoderSource> make_source(const SourceOptions& options,
     throw std::runtime_error("source backend '" + options.backend +
                              "' is not available in this build");
   }
-  return backend->make(*settings, context);
+  SourceContext with = context;
+  with.frame_assembler = frame_assemblers(options, context);
+  return backend->make(*settings, with);
 }
 
 }  // namespace exodaq::drivers

@@ -6,8 +6,10 @@
 // allocating nothing.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstdio>
 #include <memory>
 #include <string>
 #include <vector>
@@ -18,6 +20,7 @@
 #include "exodaq/drivers/canopen/canopen_backend.hpp"
 #include "exodaq/drivers/canopen/canopen_source.hpp"
 #include "exodaq/drivers/canopen/node_sim.hpp"
+#include "exodaq/drivers/replay_source.hpp"
 #include "exodaq/drivers/source_factory.hpp"
 #include "memory_can_port.hpp"
 
@@ -150,6 +153,10 @@ class Rig {
   // What node i's TPDO of the last SYNC carries.
   std::uint32_t expected_position(int i) const { return truth(i, last_sync_).position % kRange; }
 
+  // From now on every frame on the bus, both ways, stamped (as candump on the
+  // same bus would log it); null: none (allocation-free).
+  void log_bus(std::vector<can::CanFrame>* log) { bus_log_ = log; }
+
   // A frame some other device sends, arriving `after` the next SYNC.
   void inject_after_sync(const can::CanFrame& f, std::int64_t after) {
     inject_ = f;
@@ -161,6 +168,11 @@ class Rig {
   static constexpr int kMaxBatch = 128;
 
   void on_send(const can::CanFrame& f, std::int64_t at) {
+    if (bus_log_ != nullptr) {
+      can::CanFrame stamped = f;
+      stamped.mono_ns = at;
+      bus_log_->push_back(stamped);
+    }
     for (auto& n : nodes_) n->on_frame(f, at);
     if (f.id == cob::kSync) {
       last_sync_ = at;
@@ -202,11 +214,13 @@ class Rig {
     }
     for (int k = 0; k < n; ++k) {
       const can::CanFrame& f = batch_[static_cast<std::size_t>(k)];
+      if (bus_log_ != nullptr) bus_log_->push_back(f);
       if (port_->is_open()) port_->push(f, f.mono_ns);
     }
   }
 
   CanopenSourceConfig config_;
+  std::vector<can::CanFrame>* bus_log_ = nullptr;
   std::array<std::unique_ptr<EncoderNodeSim>, kNodes> nodes_;
   MemoryCanPort* port_ = nullptr;
   std::unique_ptr<CanopenSource> source_;
@@ -824,6 +838,97 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"no_section", "  canopen:\n", "  other:\n", 2,
                 "source.backend canopen needs source.canopen"}),
     [](const ::testing::TestParamInfo<BadCase>& info) { return std::string(info.param.name); });
+
+// --- candump replay ---------------------------------------------------------------
+
+// The bus as `candump -l` logs it: "(seconds.micros) can0 ID#DATA", sorted by
+// stamp, the stamps moved to a wall-clock epoch.
+std::string write_candump(const std::vector<can::CanFrame>& frames, const std::string& path,
+                          std::int64_t epoch_ns) {
+  std::vector<can::CanFrame> sorted = frames;
+  std::stable_sort(
+      sorted.begin(), sorted.end(),
+      [](const can::CanFrame& a, const can::CanFrame& b) { return a.mono_ns < b.mono_ns; });
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) return "";
+  for (const can::CanFrame& c : sorted) {
+    const std::int64_t us = (epoch_ns + c.mono_ns) / 1000;
+    std::fprintf(f, "(%lld.%06lld) can0 %03X#", static_cast<long long>(us / 1'000'000),
+                 static_cast<long long>(us % 1'000'000), static_cast<unsigned>(c.id));
+    for (int b = 0; b < c.dlc; ++b) std::fprintf(f, "%02X", c.data[static_cast<std::size_t>(b)]);
+    std::fprintf(f, "\n");
+  }
+  std::fclose(f);
+  return path;
+}
+
+// Issue 27.6: a candump log of a CANopen session replays, through the same
+// conversion, to the samples the live source delivered: positions, moduli,
+// fresh channels, references, flags (the replay mark aside) and seq, every
+// cycle, with a node's EMCY and a missing TPDO in it.
+TEST(CanopenReplay, ACandumpOfTheBusReplaysToTheLiveSamples) {
+  Rig r;
+  std::vector<can::CanFrame> bus;
+  r.log_bus(&bus);
+  ASSERT_GT(r.start_up(), 0);
+  std::vector<EncoderSample> live;
+  EncoderSample s;
+  for (int k = 0; k < 1500; ++k) {
+    if (k == 300) r.node(2).set_fault(SimFault::kEmcy, true, r.now());
+    if (k == 400) r.node(2).set_fault(SimFault::kEmcy, false, r.now());
+    if (k == 700) r.node(4).set_fault(SimFault::kTpdoMissing, true, r.now());
+    if (k == 720) r.node(4).set_fault(SimFault::kTpdoMissing, false, r.now());
+    r.cycle(s);
+    live.push_back(s);
+  }
+  // The last cycle's TPDOs were logged, but its closing SYNC never came.
+  constexpr std::int64_t kEpoch = 1'700'000'000'000'000'000;
+  const std::string path = write_candump(bus, ::testing::TempDir() + "canopen-bus.log", kEpoch);
+  ASSERT_FALSE(path.empty());
+
+  ReplaySettings settings;
+  settings.path = path;
+  settings.format = "candump";
+  settings.protocol = "canopen";
+  SourceContext context;
+  const CanopenSourceConfig config = source_config();
+  context.frame_assembler = [&config](std::string_view name) -> std::unique_ptr<FrameAssembler> {
+    return name == "canopen" ? make_frame_assembler(config, kMs) : nullptr;
+  };
+  ReplaySource replay(settings, context);
+  replay.start();
+  std::vector<EncoderSample> replayed;
+  for (;;) {
+    EncoderSample x;
+    const ReadStatus st = replay.read(CycleTime{}, x);
+    if (st == ReadStatus::kEndOfStream) break;
+    replayed.push_back(x);
+  }
+  // The first cycle ran inside start_up(): the replay has it, `live` not.
+  ASSERT_EQ(replayed.size(), live.size() + 1);
+  EXPECT_EQ(replayed.front().seq, 0);
+  int emcy = 0;
+  int partial = 0;
+  for (std::size_t k = 0; k < live.size(); ++k) {
+    const EncoderSample& l = live[k];
+    const EncoderSample& p = replayed[k + 1];
+    ASSERT_EQ(p.seq, l.seq) << k;
+    EXPECT_EQ(p.present, l.present) << k;
+    EXPECT_EQ(p.position, l.position) << k;
+    EXPECT_EQ(p.modulus, l.modulus) << k;
+    EXPECT_EQ(p.index_position, l.index_position) << k;
+    EXPECT_EQ(p.index_count_valid, l.index_count_valid) << k;
+    EXPECT_EQ(p.absolute, l.absolute) << k;
+    EXPECT_EQ(p.channel_fresh, l.channel_fresh) << k;
+    EXPECT_EQ(p.board_errors, l.board_errors) << k;
+    EXPECT_EQ(p.flags & ~flag::kReplay, l.flags) << k;
+    EXPECT_EQ(p.mono_ns / 1000, (kEpoch + l.mono_ns) / 1000) << k;  // the logged SYNC, in us
+    emcy += (l.flags & flag::kBoardError) != 0;
+    partial += (l.flags & flag::kPartial) != 0;
+  }
+  EXPECT_GE(emcy, 90);  // the EMCY's cycles are in the comparison
+  EXPECT_GE(partial, 15);
+}
 
 }  // namespace
 }  // namespace exodaq::drivers::canopen

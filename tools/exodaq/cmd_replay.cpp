@@ -495,8 +495,13 @@ int run_replay(const ReplayOptions& o, bool speed_given) {
   replay_settings.format = format;
   if (!o.channel.empty()) replay_settings.channel = o.channel;
   replay_settings.speed = speed;
-  auto source =
-      std::make_unique<drivers::ReplaySource>(replay_settings, settings::make_source_context(cfg));
+  // A candump log is the configured CAN backend's protocol (protocol v1 when
+  // the config's backend has no CAN frames, e.g. sim).
+  const drivers::Backend* backend = drivers::find_backend(cfg.source.backend);
+  if (backend != nullptr && backend->assembler) replay_settings.protocol = cfg.source.backend;
+  drivers::SourceContext context = settings::make_source_context(cfg);
+  context.frame_assembler = drivers::frame_assemblers(cfg.source, context);
+  auto source = std::make_unique<drivers::ReplaySource>(replay_settings, context);
   drivers::ReplaySource* replay = source.get();
   const std::int64_t load_start = mono_now_ns();
   try {

@@ -177,6 +177,13 @@ std::unique_ptr<EncoderSource> make_canopen(const BackendSettings& settings,
   return std::make_unique<CanopenSource>(config, make_socketcan_port(port_config(config)));
 }
 
+// A candump log of the bus: needs the section (the nodes and their objects).
+std::unique_ptr<FrameAssembler> canopen_assembler(const BackendSettings* settings,
+                                                  const SourceContext& context) {
+  const auto* s = dynamic_cast<const CanopenSettings*>(settings);
+  return s != nullptr ? make_frame_assembler(s->config, context.period_ns) : nullptr;
+}
+
 }  // namespace
 
 std::string CanopenSettings::describe() const {
@@ -208,7 +215,7 @@ std::string CanopenSettings::describe() const {
 }
 
 const Backend& canopen_backend() {
-  static const Backend b{"canopen", parse_canopen, make_canopen};
+  static const Backend b{"canopen", parse_canopen, make_canopen, canopen_assembler};
   return b;
 }
 

@@ -184,6 +184,7 @@ CanopenSource::CanopenSource(const CanopenSourceConfig& config, std::unique_ptr<
 
 void CanopenSource::start() {
   detail_ = {};
+  counts_ = {};
   cycling_ = false;
   restart_pending_ = false;
   expected_ = 0;
@@ -269,7 +270,7 @@ void CanopenSource::make_missing(EncoderSample& out, std::int64_t mono_ns,
   out.index_count_valid = 0;
   out.channel_fresh = 0;
   out.flags = sample_flag::kMissing | flags;
-  ++detail_.missing_samples;
+  ++counts_.missing_samples;
 }
 
 ReadStatus CanopenSource::read(const CycleTime& time, EncoderSample& out) noexcept {
@@ -333,11 +334,12 @@ ReadStatus CanopenSource::read(const CycleTime& time, EncoderSample& out) noexce
   return out.present ? ReadStatus::kSample : ReadStatus::kNoSample;
 }
 
-void CanopenSource::convert(const CycleSample& cycle, bool sync_failed,
-                            EncoderSample& out) noexcept {
-  out = held_;
+void to_sample(const CanopenSourceConfig& config, const CycleSample& cycle,
+               std::int64_t wall_offset_ns, std::uint32_t extra_flags, EncoderSample& held,
+               SampleCounts& counts, EncoderSample& out) noexcept {
+  out = held;
   out.mono_ns = cycle.sync_mono_ns;
-  out.wall_ns = cycle.sync_mono_ns + link_.offset_ns();
+  out.wall_ns = cycle.sync_mono_ns + wall_offset_ns;
   out.seq = static_cast<std::int64_t>(cycle.cycle);
   out.seq_modulus = 0;
   out.index_latched = 0;
@@ -347,14 +349,14 @@ void CanopenSource::convert(const CycleSample& cycle, bool sync_failed,
   std::uint32_t operational = 0;
   std::uint32_t fault_joints = 0;
   std::uint32_t fault_kinds = 0;
-  std::uint32_t flags = 0;
-  const int n = std::min(config_.joint_count, cycle.joint_count);
+  std::uint32_t flags = extra_flags;
+  const int n = std::min(config.joint_count, cycle.joint_count);
   for (int j = 0; j < n; ++j) {
     const JointReading& r = cycle.joints[at(j)];
     const std::uint32_t bit = 1U << j;
     const std::size_t c = at(j);
     out.modulus[c] = static_cast<std::int64_t>(r.modulus);
-    if (config_.joints[c].reference == ReferenceKind::kAbsolute) absolute |= bit;
+    if (config.joints[c].reference == ReferenceKind::kAbsolute) absolute |= bit;
     if ((r.faults & joint_fault::kDuplicate) != 0) flags |= sample_flag::kDuplicate;
     if (r.present && (r.faults & kReadingFaults) == 0) {
       fresh |= bit;
@@ -378,28 +380,33 @@ void CanopenSource::convert(const CycleSample& cycle, bool sync_failed,
   out.present = fresh != 0;
   if (!out.present) {
     flags |= sample_flag::kMissing;
-    ++detail_.missing_samples;
+    ++counts.missing_samples;
   } else if (fresh != joints_mask(n)) {
     flags |= sample_flag::kPartial;
-    ++detail_.partial_samples;
+    ++counts.partial_samples;
   }
   if (fault_joints != 0) {
     flags |= sample_flag::kBoardError;
-    ++detail_.board_error_samples;
+    ++counts.board_error_samples;
   }
   if ((cycle.flags & (cycle_flag::kSyncCounterMismatch | cycle_flag::kOverrun)) != 0) {
     flags |= sample_flag::kSeqGap;
-    ++detail_.seq_gaps;
+    ++counts.seq_gaps;
   }
-  if ((cycle.flags & cycle_flag::kForeignSync) != 0 || sync_failed ||
-      bus_state_ == BusState::kOff || bus_state_ == BusState::kDown) {
-    flags |= sample_flag::kBusError;
-  }
+  if ((cycle.flags & cycle_flag::kForeignSync) != 0) flags |= sample_flag::kBusError;
   out.board_state = operational;
   out.board_errors = (fault_joints & board_error::kJointMask) | fault_kinds;
   out.flags = flags;
+  held = out;
+}
+
+void CanopenSource::convert(const CycleSample& cycle, bool sync_failed,
+                            EncoderSample& out) noexcept {
+  const bool bus_error =
+      sync_failed || bus_state_ == BusState::kOff || bus_state_ == BusState::kDown;
+  to_sample(config_, cycle, link_.offset_ns(), bus_error ? sample_flag::kBusError : 0, held_,
+            counts_, out);
   last_board_errors_ = out.board_errors;
-  held_ = out;
 }
 
 // --- counters --------------------------------------------------------------------
@@ -412,8 +419,8 @@ SourceStats CanopenSource::stats() const noexcept {
   for (int k = 1; k < kRejectCount; ++k) {
     if (k != static_cast<int>(Reject::kErrorFrame)) s.bad_frames += a.rejected[at(k)];
   }
-  s.missing_samples = detail_.missing_samples;
-  s.seq_gaps = detail_.seq_gaps;
+  s.missing_samples = counts_.missing_samples;
+  s.seq_gaps = counts_.seq_gaps;
   s.duplicates = a.duplicates;
   s.bus_errors = detail_.error_frames + a.foreign_syncs;
   s.rx_overflows = detail_.rx_overflows;
@@ -444,6 +451,8 @@ void CanopenSource::diagnose(SourceDiagnostics& out) const noexcept {
   out.add("heartbeat_losses", a.heartbeat_losses);
   out.add("foreign_syncs", a.foreign_syncs);
   out.add("error_frames", detail_.error_frames);
+  out.add("partial_samples", counts_.partial_samples);
+  out.add("board_error_samples", counts_.board_error_samples);
   std::int64_t rejected = 0;
   for (int k = 1; k < kRejectCount; ++k) {
     if (k != static_cast<int>(Reject::kErrorFrame)) rejected += a.rejected[at(k)];
@@ -488,6 +497,115 @@ void CanopenSource::diagnose(SourceDiagnostics& out) const noexcept {
     }
   }
   out.set_state(text.view());
+}
+
+// ---------------------------------------------------------------------------
+// Replay of a candump log
+// ---------------------------------------------------------------------------
+
+namespace {
+AssemblerConfig replay_assembler_config(const CanopenSourceConfig& config) noexcept {
+  AssemblerConfig a = assembler_config(config);
+  a.sync_role = SyncRole::kConsumer;  // the recorded SYNCs open the cycles
+  return a;
+}
+
+// Closes each cycle where the live source did: once every joint it waits for
+// answered (here: every joint that ever did), else at the poll deadline.
+class CanopenFrameAssembler final : public FrameAssembler {
+ public:
+  CanopenFrameAssembler(const CanopenSourceConfig& config, std::int64_t period_ns)
+      : config_(config),
+        assembler_(replay_assembler_config(config)),
+        window_ns_(std::min(config.read_deadline_ns, period_ns - period_ns / 10)) {
+    for (int j = 0; j < config_.joint_count; ++j) {
+      const CanopenJoint& c = config_.joints[at(j)];
+      tpdo_ids_[at(j)] = tpdo_cob_id(c.node, c.tpdo);
+    }
+    held_.channel_fresh = 0;
+  }
+
+  void on_frame(const can::CanFrame& frame) noexcept override {
+    if (!started_) {
+      assembler_.reset(frame.mono_ns);
+      started_ = true;
+    }
+    last_ns_ = frame.mono_ns;
+    if (assembler_.cycle_open() && frame.mono_ns > sync_ns_ + window_ns_) {
+      assembler_.end_cycle(sync_ns_ + window_ns_);
+    }
+    can::ErrorPayload error;
+    if (can::decode_error(frame, error)) {
+      ++error_frames_;
+      bus_state_ = bus_state_after(bus_state_, error);
+    } else if (bus_state_ == BusState::kUnknown) {
+      bus_state_ = BusState::kActive;
+    }
+    const std::int64_t tpdos = assembler_.stats().tpdos;
+    assembler_.on_frame(frame);
+    if (frame.id == cob::kSync && frame.flags == 0 && assembler_.cycle_open()) {
+      sync_ns_ = frame.mono_ns;  // a SYNC opened the next cycle
+      answered_ |= arrived_;
+      arrived_ = 0;
+    }
+    if (assembler_.stats().tpdos == tpdos) return;
+    for (int j = 0; j < config_.joint_count; ++j) {
+      if (tpdo_ids_[at(j)] == frame.id) arrived_ |= 1U << j;
+    }
+    if (answered_ != 0 && assembler_.cycle_open() && (arrived_ & answered_) == answered_) {
+      assembler_.end_cycle(frame.mono_ns);
+    }
+  }
+  bool poll(EncoderSample& out) noexcept override {
+    if (!assembler_.poll(cycle_)) return false;
+    // The recorded stamps are wall time already: no offset to add.
+    const bool bus_down = bus_state_ == BusState::kOff || bus_state_ == BusState::kDown;
+    to_sample(config_, cycle_, 0, bus_down ? sample_flag::kBusError : 0, held_, counts_, out);
+    return true;
+  }
+  bool finish(EncoderSample& out) noexcept override {
+    if (!assembler_.cycle_open()) return false;
+    assembler_.end_cycle(std::min(last_ns_, sync_ns_ + window_ns_));
+    return poll(out);
+  }
+  SourceStats stats() const noexcept override {
+    const AssemblerStats& a = assembler_.stats();
+    SourceStats s;
+    s.frames = a.frames;
+    s.bad_frames = a.wrong_length + a.out_of_range;
+    for (int k = 1; k < kRejectCount; ++k) {
+      if (k != static_cast<int>(Reject::kErrorFrame)) s.bad_frames += a.rejected[at(k)];
+    }
+    s.missing_samples = counts_.missing_samples;
+    s.seq_gaps = counts_.seq_gaps;
+    s.duplicates = a.duplicates;
+    s.bus_errors = error_frames_ + a.foreign_syncs;
+    s.bus_state = bus_state_;
+    s.board_errors = held_.board_errors;
+    return s;
+  }
+
+ private:
+  CanopenSourceConfig config_;
+  Assembler assembler_;
+  std::int64_t window_ns_;  // the live poll deadline after a SYNC
+  std::array<std::uint32_t, kMaxNodes> tpdo_ids_{};
+  CycleSample cycle_{};
+  EncoderSample held_{};
+  SampleCounts counts_{};
+  BusState bus_state_ = BusState::kUnknown;
+  std::int64_t error_frames_ = 0;
+  std::int64_t last_ns_ = 0;
+  std::int64_t sync_ns_ = 0;
+  std::uint32_t arrived_ = 0;   // joints whose TPDO of the open cycle was accepted
+  std::uint32_t answered_ = 0;  // joints that answered an earlier SYNC
+  bool started_ = false;
+};
+}  // namespace
+
+std::unique_ptr<FrameAssembler> make_frame_assembler(const CanopenSourceConfig& config,
+                                                     std::int64_t period_ns) {
+  return std::make_unique<CanopenFrameAssembler>(checked(config), period_ns);
 }
 
 }  // namespace exodaq::drivers::canopen

@@ -177,9 +177,8 @@ bool CandumpPass::push(EncoderSample s) {
 
 }  // namespace
 
-void read_candump(const std::string& path, Pass& out, EntrySink& sink) {
+void read_candump(const std::string& path, FrameAssembler& decoder, Pass& out, EntrySink& sink) {
   LineReader in(path);
-  BoardDecoder decoder{BoardDecoderConfig{}};
   CandumpPass pass(out, sink);
   std::string_view line;
   bool too_long = false;
@@ -206,9 +205,9 @@ void read_candump(const std::string& path, Pass& out, EntrySink& sink) {
     }
     ++out.summary.frames;
     decoder.on_frame(frame);
-    while (more && decoder.poll_sample(sample)) more = pass.push(sample);
+    while (more && decoder.poll(sample)) more = pass.push(sample);
   }
-  if (more && decoder.flush(sample)) pass.push(sample);
+  if (more && decoder.finish(sample)) pass.push(sample);
   out.summary.events = line_no;
 
   const SourceStats d = decoder.stats();

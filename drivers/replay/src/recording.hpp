@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "exodaq/drivers/frame_assembler.hpp"
 #include "exodaq/drivers/replay_source.hpp"
 
 namespace exodaq::drivers::replay {
@@ -47,7 +48,8 @@ struct Pass {
 void read_lcm(const ReplaySettings& settings, const SourceContext& context, const Pass* counted,
               Pass& out, EntrySink& sink);
 
-// candump -l / -L logs, decoded by the BoardDecoder. Throws std::runtime_error.
-void read_candump(const std::string& path, Pass& out, EntrySink& sink);
+// candump -l / -L logs, their frames assembled by the protocol's assembler
+// (a fresh one per pass). Throws std::runtime_error.
+void read_candump(const std::string& path, FrameAssembler& assembler, Pass& out, EntrySink& sink);
 
 }  // namespace exodaq::drivers::replay

@@ -27,6 +27,7 @@ std::shared_ptr<const BackendSettings> parse_replay(exodaq::MapReader* s, exodaq
   out->path = s->path("path");
   out->format = s->choice_or("format", {"auto", "lcm", "candump"}, out->format);
   out->channel = s->string_or("channel", out->channel);
+  out->protocol = s->choice_or("protocol", {"socketcan", "canopen"}, out->protocol);
   if (s->has("speed")) out->speed = parse_speed(*s);
   s->finish();
   return out;
@@ -41,7 +42,8 @@ std::unique_ptr<EncoderSource> make_replay(const BackendSettings& settings,
 
 std::string ReplaySettings::describe() const {
   std::ostringstream s;
-  s << "{path: " << path << ", format: " << format << ", channel: " << channel << ", speed: ";
+  s << "{path: " << path << ", format: " << format << ", channel: " << channel
+    << ", protocol: " << protocol << ", speed: ";
   if (speed > 0) {
     s << speed;
   } else {

@@ -64,7 +64,15 @@ void read_pass(const ReplaySettings& settings, const SourceContext& context, Rep
   if (format == ReplayFormat::kLcm) {
     read_lcm(settings, context, counted, out, sink);
   } else {
-    read_candump(settings.path, out, sink);
+    std::unique_ptr<FrameAssembler> assembler;
+    if (context.frame_assembler) assembler = context.frame_assembler(settings.protocol);
+    if (!assembler && settings.protocol != "socketcan") {
+      throw std::runtime_error("replay: no " + settings.protocol +
+                               " configuration to read the candump log '" + settings.path +
+                               "' with (source." + settings.protocol + ")");
+    }
+    if (!assembler) assembler = make_board_frame_assembler(BoardDecoderConfig{});
+    read_candump(settings.path, *assembler, out, sink);
   }
 }
 

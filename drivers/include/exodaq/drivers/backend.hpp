@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "exodaq/drivers/encoder_source.hpp"
+#include "exodaq/drivers/frame_assembler.hpp"
 #include "exodaq/drivers/source_options.hpp"
 
 namespace exodaq {
@@ -39,6 +40,13 @@ struct Backend {
   std::function<std::unique_ptr<EncoderSource>(const BackendSettings& settings,
                                                const SourceContext& context)>
       make;
+  // A CAN backend: its protocol's assembly of recorded frames (candump
+  // replay, frame_assembler.hpp) with these settings (null: the config has
+  // no section for it; null returned when the protocol needs one). Empty:
+  // the backend has no CAN frames.
+  std::function<std::unique_ptr<FrameAssembler>(const BackendSettings* settings,
+                                                const SourceContext& context)>
+      assembler = {};
 };
 
 // The service config's `source:` section: the selected backend and the

@@ -9,9 +9,11 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <memory>
 
 #include "exodaq/drivers/can_codec.hpp"
 #include "exodaq/drivers/encoder_sample.hpp"
+#include "exodaq/drivers/frame_assembler.hpp"
 #include "exodaq/drivers/source_diagnostics.hpp"
 
 namespace exodaq::drivers {
@@ -154,6 +156,10 @@ class BoardDecoder {
   std::uint32_t board_errors_ = 0;  // errors | channel bits << 8
   std::uint32_t board_state_ = 0;
 };
+
+// Protocol v1's assembly of recorded frames (candump replay): the
+// BoardDecoder, oldest cycle first, a half cycle at the end as PARTIAL.
+std::unique_ptr<FrameAssembler> make_board_frame_assembler(const BoardDecoderConfig& config);
 
 // Following a free-running board: it is overdue when it was last heard from
 // (the last sample delivered, or the first half of a cycle still waiting for

@@ -4,7 +4,9 @@
 // for the sim's task planning).
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <string_view>
 
 #include "exodaq/drivers/encoder_sample.hpp"
 
@@ -14,6 +16,8 @@ struct RigKinematicsConfig;  // kinematics/rig_kinematics.hpp
 }  // namespace exodaq::kinematics
 
 namespace exodaq::drivers {
+
+class FrameAssembler;  // frame_assembler.hpp
 
 struct SourceJointContext {
   int channel = 0;
@@ -36,6 +40,12 @@ struct SourceContext {
   // kinematics::RigKinematicsConfig).
   std::shared_ptr<const kinematics::Chain> chain;
   std::shared_ptr<const kinematics::RigKinematicsConfig> rig;
+  // The frame assembler of the CAN backend of that name, with the settings
+  // of the configuration's section for it (the defaults when it has none);
+  // null when the backend has no CAN frames or is unknown. Set by
+  // make_source() (source_factory.hpp); empty: none known (protocol v1's
+  // defaults are used).
+  std::function<std::unique_ptr<FrameAssembler>(std::string_view backend)> frame_assembler;
 };
 
 }  // namespace exodaq::drivers

@@ -13,6 +13,9 @@ struct ReplaySettings final : BackendSettings {
   std::string format = "auto";              // auto | lcm | candump
   std::string channel = "EXO_ENCODER_RAW";  // LCM logs: the raw channel (with prefix)
   double speed = 1.0;                       // x real time; <= 0: as fast as possible ("max")
+  // candump logs: the CAN backend whose protocol the frames are (its section
+  // of the configuration gives the node ids / board number).
+  std::string protocol = "socketcan";
   std::string describe() const override;
 };
 

@@ -56,6 +56,7 @@
 #include "exodaq/drivers/canopen/assembler.hpp"
 #include "exodaq/drivers/canopen/startup.hpp"
 #include "exodaq/drivers/encoder_source.hpp"
+#include "exodaq/drivers/frame_assembler.hpp"
 
 namespace exodaq::drivers::canopen {
 
@@ -136,11 +137,34 @@ struct CanopenDetail {
   std::int64_t superseded_cycles = 0;
   std::int64_t rx_overflows = 0;
   std::int64_t error_frames = 0;
+};
+
+// Samples by what their conversion flagged.
+struct SampleCounts {
   std::int64_t missing_samples = 0;
   std::int64_t partial_samples = 0;
   std::int64_t board_error_samples = 0;
   std::int64_t seq_gaps = 0;
 };
+
+// One closed cycle as the protocol-neutral sample (the conversion above),
+// for the live source and the candump replay alike. `held`: the last sample
+// converted (what a stale channel repeats), updated. `extra_flags`: sample
+// flags the caller adds (kBusError: the SYNC not sent, the bus off or down).
+void to_sample(const CanopenSourceConfig& config, const CycleSample& cycle,
+               std::int64_t wall_offset_ns, std::uint32_t extra_flags, EncoderSample& held,
+               SampleCounts& counts, EncoderSample& out) noexcept;
+
+// The assembly of a candump log of a CANopen bus (the replay's
+// FrameAssembler): the recorded SYNCs open the cycles (the assembler as SYNC
+// consumer); a cycle closes where the live source closed it: once every joint
+// that ever answered has answered this SYNC, else at the live poll deadline
+// (read_deadline_ns after the SYNC, at most nine tenths of `period_ns`); each
+// cycle is converted by to_sample(). A frame of the log that reached the live
+// source in another cycle than its stamp says (a wake late by more than the
+// deadline) can make that cycle differ.
+std::unique_ptr<FrameAssembler> make_frame_assembler(const CanopenSourceConfig& config,
+                                                     std::int64_t period_ns);
 
 class CanopenSource final : public EncoderSource, private FrameSink {
  public:
@@ -185,6 +209,7 @@ class CanopenSource final : public EncoderSource, private FrameSink {
   Assembler assembler_;
   CanLink link_;
   CanopenDetail detail_{};
+  SampleCounts counts_{};
   BusState bus_state_ = BusState::kUnknown;
   bool cycling_ = false;
   bool restart_pending_ = false;  // the link came up: begin the start-up again
