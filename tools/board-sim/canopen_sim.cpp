@@ -152,10 +152,19 @@ CanopenSim::CanopenSim(const sim::SimOptions& rig, const CanopenSimOptions& opti
   }
 }
 
+// An absolute encoder counts from its zero, mounted at the joint's index
+// angle (the calibration's delta_theta0: what the daemon's offset says the
+// zero is); an encoder-interface module counts incrementally from power-up,
+// as protocol v1's board does, and latches the count at the index.
+std::int64_t CanopenSim::reported(int channel, std::int64_t rig_count) const noexcept {
+  if (options_.nodes[u(channel)].index_module) return rig_count;
+  return rig_count - rig_.encoders().count_at_index(joint_of_channel_[u(channel)], 0);
+}
+
 std::int64_t CanopenSim::count_at(int channel, double t_s) const noexcept {
   const int j = joint_of_channel_[u(channel)];
   const double theta = rig_.motion().position(t_s)[u(j)] + rig_.fault_excursion_rad(j, t_s);
-  return rig_.encoders().count_at(j, theta);
+  return reported(channel, rig_.encoders().count_at(j, theta));
 }
 
 std::uint32_t CanopenSim::position_value(int channel, double t_s) const noexcept {
@@ -214,7 +223,9 @@ void CanopenSim::on_sync(const can::CanFrame& frame, std::int64_t at) noexcept {
     const unsigned seq = d.sync.has_counter ? d.sync.counter : static_cast<unsigned>(k_ & 0xFF);
     std::fprintf(truth_, "%lld %u %.9f", static_cast<long long>(k_), seq, c.t_s);
     for (double q : c.position) std::fprintf(truth_, " %.12f", q);
-    for (std::int64_t n : c.count) std::fprintf(truth_, " %lld", static_cast<long long>(n));
+    for (int ch = 0; ch < kCanopenNodes; ++ch) {
+      std::fprintf(truth_, " %lld", static_cast<long long>(reported(ch, c.count[u(ch)])));
+    }
     std::fprintf(truth_, " %u\n", bits);
   }
   ++k_;

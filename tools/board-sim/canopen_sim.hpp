@@ -122,6 +122,10 @@ class CanopenSim {
 
   // The count of board channel `channel` at simulated time t_s (what node
   // `channel` reports before its modulus), and the position value itself.
+  // reported(): a rig count as node `channel` reports it (absolute: from
+  // the joint's index angle; an encoder-interface module: the count itself).
+  // The truth file holds reported counts.
+  std::int64_t reported(int channel, std::int64_t rig_count) const noexcept;
   std::int64_t count_at(int channel, double t_s) const noexcept;
   std::uint32_t position_value(int channel, double t_s) const noexcept;
   double sim_time_s(std::int64_t mono_ns) const noexcept {
