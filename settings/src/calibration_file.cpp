@@ -198,9 +198,8 @@ kinematics::Chain apply_calibration(const kinematics::Chain& nominal, const Cali
   }
   if (nominal.joint_count() != kCalibrationJoints) {
     throw std::invalid_argument(
-        "apply_calibration: the calibration is for a 6-joint chain, the "
-        "model has " +
-        std::to_string(nominal.joint_count()) + " joints");
+        "apply_calibration: the calibration is for a " + std::to_string(kCalibrationJoints) +
+        "-joint chain, the model has " + std::to_string(nominal.joint_count()) + " joints");
   }
   std::vector<kinematics::JointDescription> joints = nominal.joints();
   joints[1].dh.d += cal.dh.d2;

@@ -117,9 +117,11 @@ void parse_encoders(MapReader m, EncoderSettings& enc) {
   detail::visit_encoders(enc, SettingReader(m, "encoders"));
 
   const YAML::Node joints = m.child("joints");
-  if (!joints.IsSequence()) m.fail(joints, "encoders.joints must be a list of 6 joints");
+  const std::string n = std::to_string(kJointCount);
+  if (!joints.IsSequence()) m.fail(joints, "encoders.joints must be a list of " + n + " joints");
   if (joints.size() != kJointCount) {
-    m.fail(joints, "encoders.joints must have 6 entries, has " + std::to_string(joints.size()));
+    m.fail(joints,
+           "encoders.joints must have " + n + " entries, has " + std::to_string(joints.size()));
   }
   std::set<int> channels;
   for (std::size_t i = 0; i < joints.size(); ++i) {

@@ -22,13 +22,14 @@
 #include "exodaq/palm_pose_t.hpp"
 #include "exodaq/source_status_t.hpp"
 #include "exodaq/status_t.hpp"
+#include "exodaq/wire_constants.hpp"
 #include "rate_meter.hpp"
 
 namespace exodaq::tools::view {
 
 class JsonWriter;
 
-inline constexpr int kViewJoints = 6;  // joint_state_t carries six joints
+inline constexpr int kViewJoints = wire::kJointCount;  // joint_state_t's joints
 
 struct ViewModel {
   std::string name;         // the model's name

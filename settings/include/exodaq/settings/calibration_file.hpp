@@ -12,10 +12,12 @@
 #include <vector>
 
 #include "exodaq/kinematics/chain.hpp"
+#include "exodaq/wire_constants.hpp"
 
 namespace exodaq::settings {
 
-inline constexpr int kCalibrationJoints = 6;
+// The calibration is one encoder offset per joint of the published messages.
+inline constexpr int kCalibrationJoints = wire::kJointCount;
 inline constexpr const char* kCalibrationFormat = "exodaq-calibration-1";
 
 // Deviations of the nominal DH table (seed 000 Δζ), metres. Joint numbers are
