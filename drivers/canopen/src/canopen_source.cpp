@@ -64,6 +64,32 @@ std::uint32_t board_error_kinds(std::uint32_t faults) noexcept {
 // Configuration
 // ---------------------------------------------------------------------------
 
+namespace {
+// Frames the assembler refused, error frames aside (they are the bus's).
+std::int64_t rejected_frames(const AssemblerStats& a) noexcept {
+  std::int64_t n = 0;
+  for (int k = 1; k < kRejectCount; ++k) {
+    if (k != static_cast<int>(Reject::kErrorFrame)) n += a.rejected[at(k)];
+  }
+  return n;
+}
+
+// What a stream of converted cycles reports, live or replayed.
+SourceStats stream_stats(const AssemblerStats& a, const SampleCounts& c, std::int64_t error_frames,
+                         BusState bus, std::uint32_t board_errors) noexcept {
+  SourceStats s;
+  s.frames = a.frames;
+  s.bad_frames = a.wrong_length + a.out_of_range + rejected_frames(a);
+  s.missing_samples = c.missing_samples;
+  s.seq_gaps = c.seq_gaps;
+  s.duplicates = a.duplicates;
+  s.bus_errors = error_frames + a.foreign_syncs;
+  s.bus_state = bus;
+  s.board_errors = board_errors;
+  return s;
+}
+}  // namespace
+
 std::uint16_t heartbeat_producer_ms(const CanopenSourceConfig& config) noexcept {
   if (config.heartbeat_timeout_ns <= 0) return 0;
   const std::int64_t ms = config.heartbeat_timeout_ns / kNsPerMs * 2 / 3;
@@ -412,22 +438,11 @@ void CanopenSource::convert(const CycleSample& cycle, bool sync_failed,
 // --- counters --------------------------------------------------------------------
 
 SourceStats CanopenSource::stats() const noexcept {
-  const AssemblerStats& a = assembler_.stats();
-  SourceStats s;
-  s.frames = a.frames;
-  s.bad_frames = a.wrong_length + a.out_of_range;
-  for (int k = 1; k < kRejectCount; ++k) {
-    if (k != static_cast<int>(Reject::kErrorFrame)) s.bad_frames += a.rejected[at(k)];
-  }
-  s.missing_samples = counts_.missing_samples;
-  s.seq_gaps = counts_.seq_gaps;
-  s.duplicates = a.duplicates;
-  s.bus_errors = detail_.error_frames + a.foreign_syncs;
+  SourceStats s = stream_stats(assembler_.stats(), counts_, detail_.error_frames, bus_state_,
+                               last_board_errors_);
   s.rx_overflows = detail_.rx_overflows;
   s.superseded_samples = detail_.superseded_cycles;
   s.late_syncs = detail_.late_syncs;
-  s.bus_state = bus_state_;
-  s.board_errors = last_board_errors_;
   return s;
 }
 
@@ -453,11 +468,7 @@ void CanopenSource::diagnose(SourceDiagnostics& out) const noexcept {
   out.add("error_frames", detail_.error_frames);
   out.add("partial_samples", counts_.partial_samples);
   out.add("board_error_samples", counts_.board_error_samples);
-  std::int64_t rejected = 0;
-  for (int k = 1; k < kRejectCount; ++k) {
-    if (k != static_cast<int>(Reject::kErrorFrame)) rejected += a.rejected[at(k)];
-  }
-  out.add("rejected_frames", rejected);
+  out.add("rejected_frames", rejected_frames(a));
   std::int64_t sdo_retries = 0;
   std::int64_t boot_resets = 0;
   std::int64_t reboots = 0;
@@ -569,20 +580,7 @@ class CanopenFrameAssembler final : public FrameAssembler {
     return poll(out);
   }
   SourceStats stats() const noexcept override {
-    const AssemblerStats& a = assembler_.stats();
-    SourceStats s;
-    s.frames = a.frames;
-    s.bad_frames = a.wrong_length + a.out_of_range;
-    for (int k = 1; k < kRejectCount; ++k) {
-      if (k != static_cast<int>(Reject::kErrorFrame)) s.bad_frames += a.rejected[at(k)];
-    }
-    s.missing_samples = counts_.missing_samples;
-    s.seq_gaps = counts_.seq_gaps;
-    s.duplicates = a.duplicates;
-    s.bus_errors = error_frames_ + a.foreign_syncs;
-    s.bus_state = bus_state_;
-    s.board_errors = held_.board_errors;
-    return s;
+    return stream_stats(assembler_.stats(), counts_, error_frames_, bus_state_, held_.board_errors);
   }
 
  private:
