@@ -28,15 +28,7 @@ void SocketCanSource::start() {
 SocketCanDetail SocketCanSource::detail() const noexcept {
   SocketCanDetail d = detail_;
   d.superseded_samples = decoder_.stats().superseded_samples;  // the decoder counts them
-  const CanLinkStats& l = link_.stats();
-  d.unstamped_frames = l.unstamped_frames;
-  d.interface_losses = l.interface_losses;
-  d.reopen_attempts = l.reopen_attempts;
-  d.reopens = l.reopens;
-  d.receive_errors = l.receive_errors;
-  d.last_errno = l.last_errno;
-  d.open = l.open;
-  d.offset_ns = l.offset_ns;
+  d.link = link_.stats();
   return d;
 }
 

@@ -316,7 +316,7 @@ TEST(SocketCanSource, InterfaceDownDegradesThenRecovers) {
   EXPECT_EQ(f.source->stats().bus_state, BusState::kDown);
   EXPECT_NE(f.sample.flags & sample_flag::kBusError, 0U);
   EXPECT_NE(f.sample.flags & sample_flag::kMissing, 0U);
-  EXPECT_EQ(f.source->detail().interface_losses, 1);
+  EXPECT_EQ(f.source->detail().link.interface_losses, 1);
   EXPECT_FALSE(f.port->is_open());
 
   // While down: missing samples, no re-open more often than once a second.
@@ -328,8 +328,8 @@ TEST(SocketCanSource, InterfaceDownDegradesThenRecovers) {
     EXPECT_EQ(f.port->mono, f.deadline(k));
   }
   EXPECT_EQ(f.port->open_calls - opens, 2);  // at +1 s and +2 s
-  EXPECT_EQ(f.source->detail().reopen_attempts, 2);
-  EXPECT_EQ(f.source->detail().last_errno, ENETDOWN);
+  EXPECT_EQ(f.source->detail().link.reopen_attempts, 2);
+  EXPECT_EQ(f.source->detail().link.last_errno, ENETDOWN);
   // What source_status_t and the daemon's log carry.
   SourceDiagnostics down;
   f.source->diagnose(down);
@@ -352,7 +352,7 @@ TEST(SocketCanSource, InterfaceDownDegradesThenRecovers) {
     }
   }
   ASSERT_GE(recovered, 0);
-  EXPECT_EQ(f.source->detail().reopens, 1);
+  EXPECT_EQ(f.source->detail().link.reopens, 1);
   EXPECT_EQ(f.source->stats().bus_state, BusState::kActive);
   EXPECT_EQ(f.sample.flags & sample_flag::kBusError, 0U);
   for (int i = 0; i < 10; ++i) ASSERT_EQ(f.cycle(++k), ReadStatus::kSample);
@@ -373,13 +373,13 @@ TEST(SocketCanSource, InterfaceRemovedAndRecreated) {
   EXPECT_EQ(f.source->stats().bus_state, BusState::kDown);
   std::int64_t k = 2;
   for (; k < 1200; ++k) f.cycle(k);  // an attempt at +1 s fails with ENODEV
-  EXPECT_EQ(f.source->detail().last_errno, ENODEV);
+  EXPECT_EQ(f.source->detail().link.last_errno, ENODEV);
   f.port->bring_up();
   f.port->send_error = 0;
   for (; k < 2300 && f.cycle(k) != ReadStatus::kSample; ++k) {
   }
   EXPECT_EQ(f.source->stats().bus_state, BusState::kActive);
-  EXPECT_EQ(f.source->detail().reopens, 1);
+  EXPECT_EQ(f.source->detail().link.reopens, 1);
 }
 
 TEST(SocketCanSource, StartsDegradedWhenTheInterfaceIsMissing) {
@@ -422,7 +422,7 @@ TEST(SocketCanSource, SyncSendQueueFullIsCountedNotBlocking) {
   f.port->send_error = 0;
   EXPECT_EQ(f.cycle(3), ReadStatus::kSample);
   EXPECT_EQ(f.source->detail().sync_send_failures, 2);
-  EXPECT_EQ(f.source->detail().interface_losses, 0);
+  EXPECT_EQ(f.source->detail().link.interface_losses, 0);
   EXPECT_EQ(f.source->stats().bus_state, BusState::kActive);
 }
 
@@ -676,7 +676,7 @@ TEST(SocketCanSource, UnstampedFramesStampedAtReadTime) {
   f.source->start();
   ASSERT_EQ(f.cycle(0), ReadStatus::kSample);
   EXPECT_EQ(f.sample.mono_ns, f.deadline(0) + board.latency_b);
-  EXPECT_GE(f.source->detail().unstamped_frames, 2);
+  EXPECT_GE(f.source->detail().link.unstamped_frames, 2);
 }
 
 TEST(SocketCanSource, ReadAllocatesNothing) {
@@ -712,7 +712,7 @@ TEST(SocketCanSource, ReadAllocatesNothing) {
     }
   }
   EXPECT_EQ(scope.count(), 0U);
-  EXPECT_EQ(f.source->detail().reopens, 1);
+  EXPECT_EQ(f.source->detail().link.reopens, 1);
   EXPECT_EQ(f.source->stats().rx_overflows, 3);
 }
 

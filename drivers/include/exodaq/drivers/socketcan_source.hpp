@@ -41,21 +41,15 @@ struct SocketCanSourceConfig {
   BoardDecoderConfig decoder{};
 };
 
-// Backend-side counters beyond SourceStats (tests, logs).
+// Backend-side counters beyond SourceStats (tests, logs): protocol v1's own
+// and the transport's.
 struct SocketCanDetail {
   std::int64_t sync_sent = 0;
   std::int64_t sync_send_failures = 0;  // EAGAIN / ENOBUFS / other send errors while up
   std::int64_t superseded_samples = 0;  // complete cycles replaced by a newer one
   std::int64_t late_syncs = 0;  // SYNCs sent more than a tenth of a period after the deadline
   std::int64_t partial_flushes = 0;
-  std::int64_t unstamped_frames = 0;  // no kernel timestamp: stamped with the read time
-  std::int64_t interface_losses = 0;  // transitions to kDown
-  std::int64_t reopen_attempts = 0;
-  std::int64_t reopens = 0;  // successful re-opens after a loss
-  std::int64_t receive_errors = 0;
-  int last_errno = 0;
-  bool open = false;
-  std::int64_t offset_ns = 0;  // CLOCK_REALTIME − CLOCK_MONOTONIC in use
+  CanLinkStats link{};  // unstamped frames, interface losses, reopens, errno, offset
 };
 
 class SocketCanSource final : public EncoderSource, private FrameSink {
