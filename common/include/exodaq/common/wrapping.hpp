@@ -13,8 +13,13 @@ namespace exodaq {
 constexpr std::int64_t wrapped_delta(std::int64_t from, std::int64_t to,
                                      std::int64_t modulus) noexcept {
   if (modulus <= 0) return to - from;
-  std::int64_t d = (to - from) % modulus;
-  if (d < 0) d += modulus;
+  std::int64_t d = 0;
+  if ((modulus & (modulus - 1)) == 0) {
+    d = (to - from) & (modulus - 1);  // a power of two (every CAN encoder's): no division
+  } else {
+    d = (to - from) % modulus;
+    if (d < 0) d += modulus;
+  }
   return d >= modulus - modulus / 2 ? d - modulus : d;
 }
 
@@ -24,10 +29,7 @@ constexpr std::int64_t wrapped_delta(std::int64_t from, std::int64_t to,
 // fewer than modulus/2 counts pass between two readings. modulus 0: raw.
 constexpr std::int64_t unwrap(std::int64_t previous, std::int64_t raw,
                               std::int64_t modulus) noexcept {
-  if (modulus <= 0) return raw;
-  std::int64_t low = previous % modulus;
-  if (low < 0) low += modulus;
-  return previous + wrapped_delta(low, raw, modulus);
+  return modulus <= 0 ? raw : previous + wrapped_delta(previous, raw, modulus);
 }
 
 // A value reduced into [0, modulus) (unchanged for modulus 0).
@@ -64,5 +66,8 @@ static_assert(unwrap(-1, 65535, kCount16Modulus) == -1);
 static_assert(unwrap(70000, 4463, kCount16Modulus) == 69999);
 static_assert(unwrap(5, 1000, 0) == 1000);
 static_assert(wrapped_delta(250, 3, kSeq8Modulus) == seq_delta(250, 3));
+static_assert(wrapped_delta(3, 250, 240) == 7 && wrapped_delta(0, 120, 240) == -120);
+static_assert(wrapped_delta(239, 1, 240) == 2 && wrapped_delta(1, 239, 240) == -2);
+static_assert(unwrap(-240, 5, 240) == -235 && unwrap(-1, 0, 10000) == 0);
 
 }  // namespace exodaq
