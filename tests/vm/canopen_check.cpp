@@ -70,15 +70,16 @@
 #include "exodaq/settings/service_config.hpp"
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
+#include "vm_check.hpp"
 
 namespace {
 
 namespace co = exodaq::drivers::canopen;
 
-std::atomic<bool> g_stop{false};
-void on_signal(int) {
-  g_stop.store(true);
-}
+using exodaq::vm::g_stop;
+using exodaq::vm::on_signal;
+using exodaq::vm::parse_board_log;
+using exodaq::vm::Truth;
 
 constexpr std::uint32_t kMissing = 1, kBoardError = 16, kBusError = 32, kPartial = 512;
 constexpr std::uint32_t kInvalidating = kMissing | kPartial | kBoardError | kBusError;
@@ -103,15 +104,6 @@ struct Rec {
   bool all_homed() const {
     return std::all_of(homed.begin(), homed.end(), [](bool h) { return h; });
   }
-};
-
-struct Truth {
-  std::int64_t k = 0;
-  int seq = 0;
-  double t = 0;
-  std::array<double, 6> q{};
-  std::array<std::int64_t, 6> count{};
-  std::uint32_t faults = 0;
 };
 
 class Recorder {
@@ -159,31 +151,9 @@ class Recorder {
   }
 };
 
-int g_failures = 0;
+exodaq::vm::Verdicts g_verdicts{"CANOPEN-CHECK"};
 void check(bool ok, const std::string& what) {
-  std::printf("CANOPEN-CHECK: %s %s\n", ok ? "ok  " : "FAIL", what.c_str());
-  if (!ok) ++g_failures;
-}
-
-std::map<std::string, long long> parse_board_log(const std::string& path) {
-  std::map<std::string, long long> out;
-  std::ifstream in(path);
-  std::string line;
-  while (std::getline(in, line)) {
-    const auto p = line.find("BOARD-SIM:");
-    if (p == std::string::npos) continue;
-    std::istringstream s(line.substr(p + 10));
-    std::string kv;
-    while (s >> kv) {
-      const auto eq = kv.find('=');
-      if (eq == std::string::npos) continue;
-      char* end = nullptr;
-      const std::string v = kv.substr(eq + 1);
-      const long long n = std::strtoll(v.c_str(), &end, 10);
-      if (end != v.c_str() && *end == '\0') out[kv.substr(0, eq)] = n;
-    }
-  }
-  return out;
+  g_verdicts.check(ok, what);
 }
 
 // One line per cycle with joint_state_t and encoder_raw_t (doubles in %.17g:
@@ -300,21 +270,7 @@ int main(int argc, char** argv) {
   }
 
   // --- truth -------------------------------------------------------------
-  std::vector<Truth> truth;
-  {
-    std::ifstream in(truth_path);
-    std::string line;
-    while (std::getline(in, line)) {
-      if (line.empty() || line[0] == '#') continue;
-      std::istringstream s(line);
-      Truth t;
-      s >> t.k >> t.seq >> t.t;
-      for (double& q : t.q) s >> q;
-      for (auto& c : t.count) s >> c;
-      s >> t.faults;
-      if (s && t.k == static_cast<std::int64_t>(truth.size())) truth.push_back(t);
-    }
-  }
+  const std::vector<Truth> truth = exodaq::vm::read_truth(truth_path, true);
   const auto board = parse_board_log(board_log);
   const auto rate = cfg.loop.rate_hz;
   const auto period_ns = static_cast<std::int64_t>(1e9 / rate);
@@ -598,6 +554,7 @@ int main(int argc, char** argv) {
       static_cast<long long>(last.seq_gaps), static_cast<long long>(last.bus_errors),
       static_cast<long long>(last.rx_overflows), static_cast<long long>(last.overruns),
       last.bus_state, last.state, last.message.c_str());
-  std::printf("CANOPEN-CHECK: %s (%d failed)\n", g_failures == 0 ? "PASS" : "FAIL", g_failures);
-  return g_failures == 0 ? 0 : 1;
+  std::printf("CANOPEN-CHECK: %s (%d failed)\n", g_verdicts.failures() == 0 ? "PASS" : "FAIL",
+              g_verdicts.failures());
+  return g_verdicts.failures() == 0 ? 0 : 1;
 }

@@ -69,13 +69,14 @@
 #include "exodaq/settings/service_config.hpp"
 #include "exodaq/status_t.hpp"
 #include "process.hpp"
+#include "vm_check.hpp"
 
 namespace {
 
-std::atomic<bool> g_stop{false};
-void on_signal(int) {
-  g_stop.store(true);
-}
+using exodaq::vm::g_stop;
+using exodaq::vm::on_signal;
+using exodaq::vm::parse_board_log;
+using exodaq::vm::Truth;
 
 std::int64_t mono_ns() {
   timespec ts{};
@@ -103,15 +104,6 @@ struct Rec {
   std::array<std::int16_t, 6> count16{};
   bool valid = false;
   std::int64_t k = -1;  // board cycle (truth line) this sample belongs to
-};
-
-struct Truth {
-  std::int64_t k = 0;
-  int seq = 0;
-  double t = 0;
-  std::array<double, 6> q{};
-  std::array<std::int64_t, 6> count{};
-  unsigned faults = 0;
 };
 
 struct CountsFrame {
@@ -198,23 +190,6 @@ int open_can(const std::string& iface, const exodaq::drivers::can::ProtocolIds& 
   return fd;
 }
 
-std::map<std::string, long long> parse_board_log(const std::string& path) {
-  std::map<std::string, long long> out;
-  std::ifstream in(path);
-  std::string line;
-  while (std::getline(in, line)) {
-    const auto p = line.find("BOARD-SIM:");
-    if (p == std::string::npos) continue;
-    std::istringstream s(line.substr(p + 10));
-    std::string kv;
-    while (s >> kv) {
-      const auto eq = kv.find('=');
-      if (eq != std::string::npos) out[kv.substr(0, eq)] = std::stoll(kv.substr(eq + 1));
-    }
-  }
-  return out;
-}
-
 // One line per cycle with both joint_state_t and encoder_raw_t: the live run
 // as exodaq-vcan-replay-check reads it (doubles in %.17g: exact).
 bool write_live(const std::string& path, const Recorder& rec, double rate_hz) {
@@ -240,10 +215,9 @@ bool write_live(const std::string& path, const Recorder& rec, double rate_hz) {
   return std::fclose(f) == 0;
 }
 
-int g_failures = 0;
+exodaq::vm::Verdicts g_verdicts{"VCAN-CHECK"};
 void check(bool ok, const std::string& what) {
-  std::printf("VCAN-CHECK: %s %s\n", ok ? "ok  " : "FAIL", what.c_str());
-  if (!ok) ++g_failures;
+  g_verdicts.check(ok, what);
 }
 
 // What this checker's socket received around [from, to] (kernel stamps), in
@@ -620,21 +594,7 @@ int main(int argc, char** argv) {
   }
 
   // --- truth -----------------------------------------------------------
-  std::vector<Truth> truth;
-  {
-    std::ifstream in(truth_path);
-    std::string line;
-    while (std::getline(in, line)) {
-      if (line.empty() || line[0] == '#') continue;
-      std::istringstream s(line);
-      Truth t;
-      s >> t.k >> t.seq >> t.t;
-      for (double& q : t.q) s >> q;
-      for (auto& c : t.count) s >> c;
-      s >> t.faults;
-      if (s) truth.push_back(t);
-    }
-  }
+  const std::vector<Truth> truth = exodaq::vm::read_truth(truth_path, false);
   const auto board =
       board_log.empty() ? std::map<std::string, long long>{} : parse_board_log(board_log);
   auto bcount = [&](const char* key) {
@@ -1086,6 +1046,7 @@ int main(int argc, char** argv) {
                        at_end.state == exodaq::status_t::STATE_DEGRADED),
         "service recovered at the end: samples flowing, out of fault (state " +
             std::to_string(at_end.state) + ")");
-  std::printf("VCAN-CHECK: %s (%d failed)\n", g_failures == 0 ? "PASS" : "FAIL", g_failures);
-  return g_failures == 0 ? 0 : 1;
+  std::printf("VCAN-CHECK: %s (%d failed)\n", g_verdicts.failures() == 0 ? "PASS" : "FAIL",
+              g_verdicts.failures());
+  return g_verdicts.failures() == 0 ? 0 : 1;
 }
