@@ -1,5 +1,6 @@
 // CAN protocol v1 codec: every frame round-trips, every rejection reason is
-// reported, error frames decode into linux/can/error.h classes, unwrap16.
+// reported, error frames decode into linux/can/error.h classes, unwrap() at protocol v1's
+// 16-bit modulus.
 #include <gtest/gtest.h>
 
 #include "exodaq/drivers/can_codec.hpp"
@@ -205,49 +206,60 @@ TEST(CanCodec, ErrorFlagWinsOverIdAndOtherFlags) {
 }
 
 TEST(Unwrap16, SmallSteps) {
-  EXPECT_EQ(exodaq::unwrap16(0, 0), 0);
-  EXPECT_EQ(exodaq::unwrap16(0, 5), 5);
-  EXPECT_EQ(exodaq::unwrap16(0, 0xFFFB), -5);
-  EXPECT_EQ(exodaq::unwrap16(100000, static_cast<std::uint16_t>(100003 & 0xFFFF)), 100003);
-  EXPECT_EQ(exodaq::unwrap16(-100000, static_cast<std::uint16_t>(-100010 & 0xFFFF)), -100010);
+  EXPECT_EQ(exodaq::unwrap(0, 0, exodaq::kCount16Modulus), 0);
+  EXPECT_EQ(exodaq::unwrap(0, 5, exodaq::kCount16Modulus), 5);
+  EXPECT_EQ(exodaq::unwrap(0, 0xFFFB, exodaq::kCount16Modulus), -5);
+  EXPECT_EQ(
+      exodaq::unwrap(100000, static_cast<std::uint16_t>(100003 & 0xFFFF), exodaq::kCount16Modulus),
+      100003);
+  EXPECT_EQ(exodaq::unwrap(-100000, static_cast<std::uint16_t>(-100010 & 0xFFFF),
+                           exodaq::kCount16Modulus),
+            -100010);
 }
 
 TEST(CountDelta16, SmallestSignedStepAcrossTheWrap) {
-  EXPECT_EQ(exodaq::count_delta16(0xFFFE, 3), 5);
-  EXPECT_EQ(exodaq::count_delta16(3, 0xFFFE), -5);
-  EXPECT_EQ(exodaq::count_delta16(0, 0x7FFF), 32767);
-  EXPECT_EQ(exodaq::count_delta16(0, 0x8000), -32768);
-  EXPECT_EQ(exodaq::count_delta16(1234, 1234), 0);
+  EXPECT_EQ(exodaq::wrapped_delta(0xFFFE, 3, exodaq::kCount16Modulus), 5);
+  EXPECT_EQ(exodaq::wrapped_delta(3, 0xFFFE, exodaq::kCount16Modulus), -5);
+  EXPECT_EQ(exodaq::wrapped_delta(0, 0x7FFF, exodaq::kCount16Modulus), 32767);
+  EXPECT_EQ(exodaq::wrapped_delta(0, 0x8000, exodaq::kCount16Modulus), -32768);
+  EXPECT_EQ(exodaq::wrapped_delta(1234, 1234, exodaq::kCount16Modulus), 0);
 }
 
 TEST(Unwrap16, AcrossTheWrapBothDirections) {
-  EXPECT_EQ(exodaq::unwrap16(65530, 4), 65540);       // up through 0xFFFF → 0
-  EXPECT_EQ(exodaq::unwrap16(65540, 0xFFFA), 65530);  // back down
-  EXPECT_EQ(exodaq::unwrap16(-1, 1), 1);
-  EXPECT_EQ(exodaq::unwrap16(1, 0xFFFF), -1);
-  EXPECT_EQ(exodaq::unwrap16(32767, 0x8000), 32768);  // int16 overflow is no wrap of the count
-  EXPECT_EQ(exodaq::unwrap16(-32768, 0x7FFF), -32769);
+  EXPECT_EQ(exodaq::unwrap(65530, 4, exodaq::kCount16Modulus), 65540);  // up through 0xFFFF → 0
+  EXPECT_EQ(exodaq::unwrap(65540, 0xFFFA, exodaq::kCount16Modulus), 65530);  // back down
+  EXPECT_EQ(exodaq::unwrap(-1, 1, exodaq::kCount16Modulus), 1);
+  EXPECT_EQ(exodaq::unwrap(1, 0xFFFF, exodaq::kCount16Modulus), -1);
+  EXPECT_EQ(exodaq::unwrap(32767, 0x8000, exodaq::kCount16Modulus),
+            32768);  // int16 overflow is no wrap of the count
+  EXPECT_EQ(exodaq::unwrap(-32768, 0x7FFF, exodaq::kCount16Modulus), -32769);
   // Walk many revolutions of the 16-bit counter in steps of 30 000 both ways.
   std::int64_t up = 0;
   std::int64_t down = 0;
   for (int i = 1; i <= 50; ++i) {
     const std::int64_t truth = static_cast<std::int64_t>(i) * 30000;
-    up = exodaq::unwrap16(up, static_cast<std::uint16_t>(truth & 0xFFFF));
-    down = exodaq::unwrap16(down, static_cast<std::uint16_t>((-truth) & 0xFFFF));
+    up = exodaq::unwrap(up, static_cast<std::uint16_t>(truth & 0xFFFF), exodaq::kCount16Modulus);
+    down = exodaq::unwrap(down, static_cast<std::uint16_t>((-truth) & 0xFFFF),
+                          exodaq::kCount16Modulus);
     ASSERT_EQ(up, truth);
     ASSERT_EQ(down, -truth);
   }
 }
 
 TEST(Unwrap16, LimitsAtPlusMinus32767) {
-  EXPECT_EQ(exodaq::unwrap16(0, 32767), 32767);
-  EXPECT_EQ(exodaq::unwrap16(0, static_cast<std::uint16_t>(-32767 & 0xFFFF)), -32767);
-  EXPECT_EQ(exodaq::unwrap16(1000, static_cast<std::uint16_t>((1000 + 32767) & 0xFFFF)), 33767);
-  EXPECT_EQ(exodaq::unwrap16(1000, static_cast<std::uint16_t>((1000 - 32767) & 0xFFFF)), -31767);
+  EXPECT_EQ(exodaq::unwrap(0, 32767, exodaq::kCount16Modulus), 32767);
+  EXPECT_EQ(exodaq::unwrap(0, static_cast<std::uint16_t>(-32767 & 0xFFFF), exodaq::kCount16Modulus),
+            -32767);
+  EXPECT_EQ(exodaq::unwrap(1000, static_cast<std::uint16_t>((1000 + 32767) & 0xFFFF),
+                           exodaq::kCount16Modulus),
+            33767);
+  EXPECT_EQ(exodaq::unwrap(1000, static_cast<std::uint16_t>((1000 - 32767) & 0xFFFF),
+                           exodaq::kCount16Modulus),
+            -31767);
   // A step of exactly 32768 is ambiguous and resolves to −32768.
-  EXPECT_EQ(exodaq::unwrap16(0, 0x8000), -32768);
+  EXPECT_EQ(exodaq::unwrap(0, 0x8000, exodaq::kCount16Modulus), -32768);
   // Beyond ±32767 the unwrap aliases: +32769 reads as −32767.
-  EXPECT_EQ(exodaq::unwrap16(0, static_cast<std::uint16_t>(32769)), -32767);
+  EXPECT_EQ(exodaq::unwrap(0, static_cast<std::uint16_t>(32769), exodaq::kCount16Modulus), -32767);
 }
 
 TEST(SeqDelta, WrapsAt256) {

@@ -275,7 +275,7 @@ TEST(SimRig, CountsCrossThe16BitWrapAndUnwrapToTruth) {
     ASSERT_TRUE(dec.poll_sample(s));
     for (std::size_t j = 0; j < 6; ++j) {
       const std::int64_t before = unwrapped[j];
-      unwrapped[j] = exodaq::unwrap16(unwrapped[j], s.position[j]);
+      unwrapped[j] = exodaq::unwrap(unwrapped[j], s.position[j], exodaq::kCount16Modulus);
       EXPECT_EQ(unwrapped[j], rig.encoders().count(static_cast<int>(j)));
       if ((before >> 16) != (unwrapped[j] >> 16)) crossed[j] = true;
     }

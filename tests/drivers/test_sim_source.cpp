@@ -98,7 +98,7 @@ TEST(SimSource, TwentyThousandCyclesMatchTruthWithinOneCountAndAllocateNothing) 
     for (std::size_t j = 0; j < 6; ++j) {
       const auto ch = static_cast<std::size_t>(o.encoders[j].channel);
       if ((s.channel_fresh & (1U << ch)) == 0) continue;  // held from an older cycle
-      unwrapped[j] = exodaq::unwrap16(unwrapped[j], s.position[ch]);
+      unwrapped[j] = exodaq::unwrap(unwrapped[j], s.position[ch], exodaq::kCount16Modulus);
       // The count the floor formula gives at the true angle, exactly...
       ASSERT_EQ(unwrapped[j], src.rig().encoders().count_at(static_cast<int>(j), truth.position[j]))
           << "k " << k << " joint " << j;

@@ -1,8 +1,8 @@
 #pragma once
 // Wrapping counter arithmetic, the one definition. A source states each
 // position's modulus and its sequence's modulus (0: the value does not wrap);
-// protocol v1 sends the low 16 bits of each count and an 8-bit board
-// sequence, which the 16- and 8-bit forms below are the special cases of.
+// protocol v1 sends the low 16 bits of each count (kCount16Modulus) and an
+// 8-bit board sequence (seq_delta(), the 256 case for its uint8 fields).
 #include <cstdint>
 
 namespace exodaq {
@@ -42,17 +42,6 @@ constexpr std::int64_t wrap(std::int64_t value, std::int64_t modulus) noexcept {
 // Protocol v1: 16-bit counts, 8-bit board sequence.
 inline constexpr std::int64_t kCount16Modulus = 65536;
 inline constexpr std::int64_t kSeq8Modulus = 256;
-
-// Signed distance from reading `from` to reading `to` of a 16-bit counter, in
-// [−32768, 32767] (the smallest one modulo 65536).
-constexpr int count_delta16(std::uint16_t from, std::uint16_t to) noexcept {
-  return static_cast<std::int16_t>(static_cast<std::uint16_t>(to - from));
-}
-
-// unwrap() at modulus 65536.
-constexpr std::int64_t unwrap16(std::int64_t previous, std::uint16_t raw) noexcept {
-  return previous + count_delta16(static_cast<std::uint16_t>(previous & 0xFFFF), raw);
-}
 
 // Signed distance from `from` to `to` in the uint8 board-sequence space, in
 // [−128, 127]: 1 = next cycle, 0 = same, negative = older.

@@ -170,8 +170,6 @@ CanFrame encode_heartbeat(const HeartbeatPayload& hb, std::uint8_t dlc = 4,
 // ---------------------------------------------------------------------------
 
 // 16-bit counts and 8-bit board sequences: exodaq/common/wrapping.hpp.
-using exodaq::count_delta16;
 using exodaq::seq_delta;
-using exodaq::unwrap16;
 
 }  // namespace exodaq::drivers::can
