@@ -217,7 +217,6 @@ void CanopenSource::start() {
   arrived_ = 0;
   held_ = {};
   held_.channel_fresh = 0;
-  last_board_errors_ = 0;
   const bool up = link_.start();  // throws when CAN itself is unavailable
   const std::int64_t now = link_.now_mono_ns();
   startup_.begin(now);
@@ -432,14 +431,13 @@ void CanopenSource::convert(const CycleSample& cycle, bool sync_failed,
       sync_failed || bus_state_ == BusState::kOff || bus_state_ == BusState::kDown;
   to_sample(config_, cycle, link_.offset_ns(), bus_error ? sample_flag::kBusError : 0, held_,
             counts_, out);
-  last_board_errors_ = out.board_errors;
 }
 
 // --- counters --------------------------------------------------------------------
 
 SourceStats CanopenSource::stats() const noexcept {
   SourceStats s = stream_stats(assembler_.stats(), counts_, detail_.error_frames, bus_state_,
-                               last_board_errors_);
+                               held_.board_errors);
   s.rx_overflows = detail_.rx_overflows;
   s.superseded_samples = detail_.superseded_cycles;
   s.late_syncs = detail_.late_syncs;

@@ -218,7 +218,6 @@ class CanopenSource final : public EncoderSource, private FrameSink {
   std::array<std::uint32_t, kMaxNodes> tpdo_ids_{};
   CycleSample cycle_{};
   EncoderSample held_{};  // the last sample delivered: what a missing one repeats
-  std::uint32_t last_board_errors_ = 0;
 };
 
 }  // namespace exodaq::drivers::canopen
