@@ -154,7 +154,7 @@ const char* validate(const CanopenSourceConfig& config, int& joint) noexcept {
     return "interface must be a network interface name (1-15 characters)";
   }
   if (config.joint_count < 1 || config.joint_count > kChannelCount) {
-    return "joint count must be 1..6";
+    return "joint count must be between 1 and the published joints (kChannelCount)";
   }
   if (config.read_deadline_ns <= 0) return "read deadline must be positive";
   if (config.reopen_interval_ns <= 0) return "reopen interval must be positive";
