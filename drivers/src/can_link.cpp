@@ -21,9 +21,9 @@ bool CanLink::start() {
   stats_ = CanLinkStats{};
   up_ = false;
   socket_may_hold_more_ = false;
-  offset_valid_ = false;
-  offset_width_ns_ = INT64_MAX;
-  measure_offset();
+  offset_.reset();
+  offset_.measure(*port_);
+  stats_.offset_ns = offset_.ns();
   last_open_attempt_mono_ = port_->now_mono_ns();
   const int r = port_->open();
   if (r == 0) {
@@ -42,27 +42,22 @@ void CanLink::stop() noexcept {
   stats_.open = false;
 }
 
-void CanLink::measure_offset() noexcept {
-  // mono, wall, mono: the wall reading belongs to the bracket's midpoint.
-  // CLOCK_REALTIME − CLOCK_MONOTONIC only changes when the wall clock is
-  // stepped (NTP slews both), so the tightest bracket seen is kept until a
-  // reading differs by more than both brackets' widths + 1 µs (a step).
-  const std::int64_t m0 = port_->now_mono_ns();
-  const std::int64_t w = port_->now_wall_ns();
-  const std::int64_t m1 = port_->now_mono_ns();
+void WallMonoOffset::measure(CanPort& port) noexcept {
+  const std::int64_t m0 = port.now_mono_ns();
+  const std::int64_t w = port.now_wall_ns();
+  const std::int64_t m1 = port.now_mono_ns();
   const std::int64_t width = m1 - m0;
   const std::int64_t offset = w - (m0 + width / 2);
-  if (!offset_valid_ || width <= offset_width_ns_ ||
-      std::llabs(offset - offset_ns_) > offset_width_ns_ + width + 1000) {
-    offset_ns_ = offset;
-    offset_width_ns_ = width;
-    offset_valid_ = true;
+  if (!valid_ || width <= width_ns_ || std::llabs(offset - ns_) > width_ns_ + width + 1000) {
+    ns_ = offset;
+    width_ns_ = width;
+    valid_ = true;
   }
-  stats_.offset_ns = offset_ns_;
 }
 
 bool CanLink::poll_open(FrameSink& sink) noexcept {
-  measure_offset();
+  offset_.measure(*port_);
+  stats_.offset_ns = offset_.ns();
   if (up_) return true;
   const std::int64_t now = port_->now_mono_ns();
   if (now - last_open_attempt_mono_ < reopen_interval_ns_) return false;
@@ -117,7 +112,7 @@ bool CanLink::drain(FrameSink& sink) noexcept {
         ++stats_.unstamped_frames;
         f.wall_ns = port_->now_wall_ns();
       }
-      f.mono_ns = f.wall_ns - offset_ns_;
+      f.mono_ns = f.wall_ns - offset_.ns();
       sink.on_frame(f);
     }
     if (n < kBatch) return true;

@@ -739,6 +739,17 @@ TEST(CanopenConfig, GoodSectionIsParsedAndDescribed) {
   EXPECT_FALSE(p.filters.passes(0x605));  // SDO requests: ours
 }
 
+// Up to nine tenths of the longest period (10 Hz): the source caps the wait
+// at nine tenths of its own period whatever the setting.
+TEST(CanopenConfig, ReadDeadlineUpToNineTenthsOfTheLongestPeriod) {
+  std::string text = kGood;
+  text.replace(text.find("read_deadline_us: 500"), 21, "read_deadline_us: 90000");
+  const auto parsed = parse(text);
+  const auto* s = dynamic_cast<const CanopenSettings*>(parsed.get());
+  ASSERT_NE(s, nullptr);
+  EXPECT_EQ(s->config.read_deadline_ns, 90 * kMs);
+}
+
 TEST(CanopenConfig, RegisteredAndBuildsItsSource) {
   const Backend* b = find_backend("canopen");
   ASSERT_NE(b, nullptr);
@@ -789,9 +800,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"sync_overflow_reserved", "sync_overflow: 0", "sync_overflow: 1", 6,
                 "source.canopen.sync_overflow must be 0 or 2..240"},
         BadCase{"read_deadline_zero", "read_deadline_us: 500", "read_deadline_us: 0", 7,
-                "source.canopen.read_deadline_us must be in (0, 900]"},
-        BadCase{"read_deadline_too_long", "read_deadline_us: 500", "read_deadline_us: 901", 7,
-                "source.canopen.read_deadline_us must be in (0, 900]"},
+                "source.canopen.read_deadline_us must be in (0, 90000]"},
+        BadCase{"read_deadline_too_long", "read_deadline_us: 500", "read_deadline_us: 90001", 7,
+                "source.canopen.read_deadline_us must be in (0, 90000]"},
         BadCase{"reopen_too_short", "reopen_interval_ms: 200", "reopen_interval_ms: 5", 8,
                 "source.canopen.reopen_interval_ms must be between 10 and 60000"},
         BadCase{"rcvbuf_too_small", "rcvbuf_bytes: 65536", "rcvbuf_bytes: 100", 9,

@@ -47,7 +47,8 @@ struct BenchSetup {
 // The simulator on a memory port, and the manager on the other side of it.
 class Bench {
  public:
-  explicit Bench(const BenchSetup& s = {}) : setup_(s), truth_(std::tmpfile()) {
+  explicit Bench(const BenchSetup& s = {})
+      : setup_(s), truth_(std::tmpfile()), answers_(std::tmpfile()) {
     CanopenSimOptions o;
     for (int i = 0; i < kCanopenNodes; ++i) {
       o.nodes[static_cast<std::size_t>(i)].node = static_cast<NodeId>(21 + i);
@@ -60,7 +61,7 @@ class Bench {
     port_.admit = [filters](const drivers::can::CanFrame& f) { return filters.passes(f.id); };
     EXPECT_EQ(port_.open(), 0);
     write_truth_header(truth_.get());
-    sim_ = std::make_unique<CanopenSim>(sim::SimOptions{}, o, port_, truth_.get());
+    sim_ = std::make_unique<CanopenSim>(sim::SimOptions{}, o, port_, truth_.get(), answers_.get());
     build_manager();
   }
 
@@ -128,16 +129,9 @@ class Bench {
 
   std::int64_t last_sync() const { return last_sync_; }
 
-  // The truth file's lines after its header.
-  std::vector<std::string> truth_lines() {
-    std::fflush(truth_.get());
-    std::rewind(truth_.get());
-    std::vector<std::string> lines;
-    char buf[1024];
-    while (std::fgets(buf, sizeof buf, truth_.get()) != nullptr) lines.emplace_back(buf);
-    std::fseek(truth_.get(), 0, SEEK_END);
-    return lines;
-  }
+  // The truth file's and the answers file's lines.
+  std::vector<std::string> truth_lines() { return lines_of(truth_.get()); }
+  std::vector<std::string> answer_lines() { return lines_of(answers_.get()); }
 
  private:
   void build_manager() {
@@ -180,7 +174,18 @@ class Bench {
 
   BenchSetup setup_;
   test::MemoryCanPort port_;
+  static std::vector<std::string> lines_of(std::FILE* f) {
+    std::fflush(f);
+    std::rewind(f);
+    std::vector<std::string> lines;
+    char buf[1024];
+    while (std::fgets(buf, sizeof buf, f) != nullptr) lines.emplace_back(buf);
+    std::fseek(f, 0, SEEK_END);
+    return lines;
+  }
+
   std::unique_ptr<std::FILE, FileCloser> truth_;
+  std::unique_ptr<std::FILE, FileCloser> answers_;
   std::unique_ptr<CanopenSim> sim_;
   Startup startup_{StartupConfig{}};
   Assembler assembler_{AssemblerConfig{}};
@@ -302,10 +307,12 @@ TEST(CanopenSim, EveryJointCarriesTheRigsCountAtItsSync) {
   EXPECT_EQ(b.sim().counters().syncs, kCycles);
   EXPECT_EQ(b.assembler().stats().tpdos, kCycles * kCanopenNodes);
 
-  // The truth file: BoardSim's header and format, one line per SYNC.
+  // The truth file: BoardSim's header and format, the simulator's start on
+  // CLOCK_MONOTONIC, one line per SYNC.
   const std::vector<std::string> lines = b.truth_lines();
-  ASSERT_EQ(lines.size(), static_cast<std::size_t>(kCycles + 1));
+  ASSERT_EQ(lines.size(), static_cast<std::size_t>(kCycles + 2));
   EXPECT_EQ(lines[0], "# k seq t_s q0 q1 q2 q3 q4 q5 c0 c1 c2 c3 c4 c5 fault_bits\n");
+  EXPECT_EQ(lines[1].rfind("# origin_mono_ns ", 0), 0U) << lines[1];
   std::istringstream last_line(lines.back());
   long long k = 0;
   unsigned seq = 0;
@@ -323,6 +330,25 @@ TEST(CanopenSim, EveryJointCarriesTheRigsCountAtItsSync) {
   unsigned bits = 1;
   last_line >> bits;
   EXPECT_EQ(bits, 0U);
+
+  // The answers: every TPDO once, with the SYNC it answered, sent after it.
+  const std::int64_t origin = std::stoll(lines[1].substr(17));
+  std::vector<int> answered(static_cast<std::size_t>(kCycles) * kCanopenNodes, 0);
+  for (const std::string& line : b.answer_lines()) {
+    std::istringstream a(line);
+    long long ak = -1, sent = 0;
+    int channel = -1;
+    ASSERT_TRUE(a >> ak >> channel >> sent) << line;
+    ASSERT_TRUE(ak >= 0 && ak < kCycles && channel >= 0 && channel < kCanopenNodes) << line;
+    std::istringstream truth_line(lines[static_cast<std::size_t>(ak) + 2]);
+    long long tk = 0;
+    unsigned tseq = 0;
+    double ts = 0;
+    truth_line >> tk >> tseq >> ts;
+    EXPECT_GE(sent, origin + std::llround(ts * 1e9)) << line;
+    ++answered[static_cast<std::size_t>(ak * kCanopenNodes + channel)];
+  }
+  for (int n : answered) ASSERT_EQ(n, 1);
 }
 
 TEST(CanopenSim, IndexModuleSendsItsCountAndLatchedReference) {

@@ -572,10 +572,28 @@ int main(int argc, char** argv) {
       read_counts_frames(can_fd, stamps, seen);
     }
   });
-  while (!g_stop.load() && mono_ns() < end) {
+  auto handle_for = [&lc](int ms) {
     pollfd p{lc.getFileno(), POLLIN, 0};
-    if (poll(&p, 1, 50) > 0 && (p.revents & POLLIN)) lc.handle();
-  }
+    if (poll(&p, 1, ms) > 0 && (p.revents & POLLIN)) lc.handle();
+  };
+  while (!g_stop.load() && mono_ns() < end) handle_for(50);
+  // The board simulator stopped first (the scenario's stop_run), but a
+  // daemon a loaded machine runs late may still hold its frames in its CAN
+  // socket: recorded on until it publishes a MISSING sample after this
+  // point, its socket then empty (at most kDrainS: judged as it is then).
+  constexpr int kDrainS = 60;
+  const std::int64_t seq_at_stop = static_cast<std::int64_t>(rec.recs.size()) - 1;
+  const std::int64_t drain_start = mono_ns();
+  auto drained = [&] {
+    for (std::size_t s = static_cast<std::size_t>(seq_at_stop + 1); s < rec.recs.size(); ++s) {
+      if (rec.recs[s].raw && !rec.recs[s].present) return true;
+    }
+    return false;
+  };
+  while (!drained() && mono_ns() - drain_start < kDrainS * 1'000'000'000LL) handle_for(50);
+  std::printf("VCAN-CHECK: after the stop, %.3f s until the daemon's socket was empty%s\n",
+              static_cast<double>(mono_ns() - drain_start) / 1e9,
+              drained() ? "" : " (NOT seen: judged as recorded)");
   reading.store(false);
   can_reader.join();
   std::printf("VCAN-CHECK: CAN socket read on its own thread, %s\n",

@@ -23,11 +23,24 @@
 // is the emulated machine's speed, not the replay's: those are compared on
 // their fresh joints). Cycles that cannot pair are counted by cause. Exit 0
 // pass, 1 fail, 77 skip (the VM did not run: no recording in --work).
+//
+// --protocol canopen (CTest vm_vcan_canopen_replay): the VM's canopen stage
+// (canopen-run.candump, canopen-run-live.txt from exodaq-canopen-check, and
+// canopen-run.yaml, the config the daemon ran) replayed with that config. The
+// replay numbers its cycles from the log's first SYNC, the live source from
+// its first SYNC, and candump ran before the daemon: a live and a replayed
+// cycle pair by source_seq, verified by their instants (the SYNC's send time
+// live, its logged kernel stamp replayed: within half a period). For every pair: the
+// raw position of each channel fresh on both sides equal, each joint's angle
+// not HELD on either side equal to 1e-9 rad, `homed` the same; a channel fresh
+// on one side only (its TPDO stamped near the wait's end, or queued to the
+// live socket after the live wait) is counted and printed.
 #include <lcm/lcm-cpp.hpp>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -169,6 +182,252 @@ std::string write_config(const std::string& source, const std::string& work, dou
   return path;
 }
 
+// --- --protocol canopen ---------------------------------------------------------
+
+struct CoCycle {
+  std::int64_t seq = -1, utime = 0, source_seq = -1;
+  bool present = false;
+  std::uint32_t sample_flags = 0, fresh = 0;
+  std::array<std::int64_t, 6> raw{};
+  std::array<bool, 6> homed{};
+  std::array<std::uint32_t, 6> flags{};
+  std::array<double, 6> pos{};
+};
+
+bool read_co_live(const std::string& path, std::vector<CoCycle>& out) {
+  std::ifstream in(path);
+  if (!in) return false;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream s(line);
+    CoCycle c;
+    int present = 0, valid = 0;
+    long long mono_ns = 0;
+    std::uint32_t source_flags = 0;
+    s >> c.seq >> c.utime >> present >> c.source_seq >> mono_ns >> c.sample_flags >> source_flags >>
+        valid >> c.fresh;
+    for (auto& v : c.raw) s >> v;
+    for (auto& h : c.homed) {
+      int x = 0;
+      s >> x;
+      h = x != 0;
+    }
+    for (auto& f : c.flags) s >> f;
+    for (auto& q : c.pos) {
+      std::string t;
+      s >> t;
+      q = std::strtod(t.c_str(), nullptr);
+    }
+    if (!s) {
+      std::printf("VCAN-REPLAY: FAIL %s: unreadable line \"%s\"\n", path.c_str(), line.c_str());
+      return false;
+    }
+    c.present = present != 0;
+    out.push_back(c);
+  }
+  return true;
+}
+
+bool read_co_replay(const std::string& path, std::vector<CoCycle>& out) {
+  lcm::LogFile log(path, "r");
+  if (!log.good()) return false;
+  std::map<std::int64_t, CoCycle> by_seq;
+  std::map<std::int64_t, int> parts;
+  while (const lcm::LogEvent* ev = log.readNextEvent()) {
+    if (ev->channel.ends_with("EXO_JOINT_STATE")) {
+      exodaq::joint_state_t m;
+      if (m.decode(ev->data, 0, static_cast<int>(ev->datalen)) < 0) return false;
+      CoCycle& c = by_seq[m.seq];
+      c.seq = m.seq;
+      c.utime = m.utime;
+      c.sample_flags = static_cast<std::uint32_t>(m.sample_flags);
+      for (std::size_t j = 0; j < 6; ++j) {
+        c.homed[j] = m.homed[j];
+        c.flags[j] = static_cast<std::uint32_t>(m.flags[j]);
+        c.pos[j] = m.position[j];
+      }
+      parts[m.seq] |= 1;
+    } else if (ev->channel.ends_with("EXO_ENCODER_RAW")) {
+      exodaq::encoder_raw_t m;
+      if (m.decode(ev->data, 0, static_cast<int>(ev->datalen)) < 0) return false;
+      CoCycle& c = by_seq[m.seq];
+      c.present = m.present;
+      c.source_seq = m.source_seq;
+      c.fresh = static_cast<std::uint32_t>(m.channel_fresh);
+      for (std::size_t j = 0; j < 6; ++j) c.raw[j] = m.position[j];
+      parts[m.seq] |= 2;
+    }
+  }
+  for (const auto& [seq, c] : by_seq) {
+    if (parts[seq] == 3) out.push_back(c);
+  }
+  return true;
+}
+
+int run_canopen(const std::string& exodaq, const std::string& source, const std::string& work) {
+  const std::string candump = work + "/canopen-run.candump";
+  const std::string live_path = work + "/canopen-run-live.txt";
+  const std::string vm_config = work + "/canopen-run.yaml";
+  const int have = (std::filesystem::exists(candump) ? 1 : 0) +
+                   (std::filesystem::exists(live_path) ? 1 : 0) +
+                   (std::filesystem::exists(vm_config) ? 1 : 0);
+  if (have == 0) {
+    std::printf("SKIP: no %s: the VM test (vm_vcan) did not run here\n", candump.c_str());
+    return 77;
+  }
+  if (have != 3) {
+    std::printf("VCAN-REPLAY: FAIL the VM ran but left only %d of %s, %s, %s\n", have,
+                candump.c_str(), live_path.c_str(), vm_config.c_str());
+    return 1;
+  }
+  // The VM's config, its model and calibration paths made absolute.
+  std::ifstream in(vm_config);
+  std::ostringstream cfg;
+  std::string line;
+  double rate_hz = 0;
+  while (std::getline(in, line)) {
+    if (line.starts_with("model: ")) {
+      line = "model: " + source + "/config/" + line.substr(7);
+    } else if (line.starts_with("calibration: ")) {
+      line = "calibration: " + source + "/config/" + line.substr(13);
+    } else if (line.starts_with("  rate_hz: ")) {
+      rate_hz = std::strtod(line.c_str() + 11, nullptr);
+    }
+    cfg << line << '\n';
+  }
+  const std::string config = work + "/canopen-replay.yaml";
+  std::ofstream(config) << cfg.str();
+  std::vector<CoCycle> live;
+  if (rate_hz <= 0 || !read_co_live(live_path, live)) {
+    std::printf("VCAN-REPLAY: FAIL cannot read %s (rate %g Hz)\n", live_path.c_str(), rate_hz);
+    return 1;
+  }
+  const std::string out_lcm = work + "/canopen-replay.lcm";
+  std::filesystem::remove(out_lcm);
+  const auto r = exodaq::test::run({exodaq, "replay", candump, "--config", config, "--format",
+                                    "candump", "--speed", "max", "--out", out_lcm, "--quiet"},
+                                   std::chrono::seconds(120));
+  std::printf("VCAN-REPLAY: canopen: exodaq replay (loop rate %g Hz) rc=%d\n%s%s", rate_hz,
+              r.exit_code, r.out.c_str(), r.err.c_str());
+  if (r.exit_code != 0) {
+    std::printf("VCAN-REPLAY: FAIL exodaq replay exit code %d\n", r.exit_code);
+    return 1;
+  }
+  std::vector<CoCycle> replay;
+  if (!read_co_replay(out_lcm, replay)) {
+    std::printf("VCAN-REPLAY: FAIL cannot read %s\n", out_lcm.c_str());
+    return 1;
+  }
+  std::map<std::int64_t, const CoCycle*> replay_by_source;
+  for (const CoCycle& c : replay) {
+    if (c.source_seq >= 0 && !replay_by_source.contains(c.source_seq))
+      replay_by_source[c.source_seq] = &c;
+  }
+  constexpr std::uint32_t kHeld = 64;  // joint_state_t::JOINT_HELD
+  const auto half_period_us = static_cast<std::int64_t>(0.5e6 / rate_hz);
+  std::int64_t cycles = 0, paired = 0, unpaired = 0, far = 0, raw_differ = 0, pos_differ = 0,
+               homed_differ = 0, fresh_differ = 0, fresh_live_only = 0, fresh_replay_only = 0,
+               compared_channels = 0, whole = 0, whole_homed = 0;
+  std::int64_t worst_dt_us = 0, last_source_seq = -1;
+  double worst = 0;
+  int reported = 0;
+  for (const CoCycle& l : live) {
+    // The first live message of each source_seq (a cycle with none closed repeats it).
+    if (l.source_seq < 0 || l.source_seq <= last_source_seq) continue;
+    last_source_seq = l.source_seq;
+    ++cycles;
+    const auto it = replay_by_source.find(l.source_seq);
+    if (it == replay_by_source.end()) {
+      if (unpaired++ < 5)
+        std::printf("VCAN-REPLAY: live source_seq %lld not in the replay\n",
+                    static_cast<long long>(l.source_seq));
+      continue;
+    }
+    const CoCycle& p = *it->second;
+    const std::int64_t dt = std::llabs(p.utime - l.utime);
+    worst_dt_us = std::max(worst_dt_us, dt);
+    if (dt > half_period_us) {
+      ++far;
+      continue;
+    }
+    ++paired;
+    if (l.fresh != p.fresh) {
+      ++fresh_differ;
+      fresh_live_only += std::popcount(l.fresh & ~p.fresh);
+      fresh_replay_only += std::popcount(p.fresh & ~l.fresh);
+      if (reported++ < 5) {
+        std::printf(
+            "VCAN-REPLAY: source_seq %lld: fresh live 0x%x replay 0x%x (sample_flags %u / %u)\n",
+            static_cast<long long>(l.source_seq), l.fresh, p.fresh, l.sample_flags, p.sample_flags);
+      }
+    } else if (l.fresh == 0x3FU) {
+      ++whole;
+      if (std::all_of(l.homed.begin(), l.homed.end(), [](bool h) { return h; })) ++whole_homed;
+    }
+    bool same_raw = true, same_pos = true;
+    for (std::size_t j = 0; j < 6; ++j) {
+      const std::uint32_t bit = 1U << j;
+      if ((l.fresh & p.fresh & bit) != 0) {
+        ++compared_channels;
+        same_raw = same_raw && l.raw[j] == p.raw[j];
+      }
+      if ((l.flags[j] & kHeld) != 0 || (p.flags[j] & kHeld) != 0) continue;
+      const double d = std::fabs(p.pos[j] - l.pos[j]);
+      worst = std::max(worst, d);
+      same_pos = same_pos && d <= 1e-9;
+    }
+    const bool same_homed = p.homed == l.homed;
+    if (!same_raw) ++raw_differ;
+    if (!same_pos) ++pos_differ;
+    if (!same_homed) ++homed_differ;
+    if ((!same_raw || !same_pos || !same_homed) && reported++ < 10) {
+      std::printf("VCAN-REPLAY: source_seq %lld: raw %s, angles %s, homed %s\n",
+                  static_cast<long long>(l.source_seq), same_raw ? "same" : "DIFFER",
+                  same_pos ? "same" : "DIFFER", same_homed ? "same" : "DIFFER");
+      for (std::size_t j = 0; j < 6; ++j) {
+        std::printf(
+            "VCAN-REPLAY:   joint %zu: live %.17g homed %d flags %u raw %lld | replay %.17g "
+            "homed %d flags %u raw %lld\n",
+            j, l.pos[j], l.homed[j] ? 1 : 0, l.flags[j], static_cast<long long>(l.raw[j]), p.pos[j],
+            p.homed[j] ? 1 : 0, p.flags[j], static_cast<long long>(p.raw[j]));
+      }
+    }
+  }
+  std::printf(
+      "VCAN-REPLAY: canopen: live %zu messages, %lld cycles (source_seq 0..%lld); replay %zu "
+      "cycles; paired by source_seq %lld (utime within half a period; worst %lld us), %lld not "
+      "in the replay, %lld too far apart\n",
+      live.size(), static_cast<long long>(cycles), static_cast<long long>(last_source_seq),
+      replay.size(), static_cast<long long>(paired), static_cast<long long>(worst_dt_us),
+      static_cast<long long>(unpaired), static_cast<long long>(far));
+  std::printf(
+      "VCAN-REPLAY: canopen: %lld channel positions compared (fresh on both sides), %lld "
+      "cycles with all six fresh on both (%lld every joint homed); %lld cycles whose fresh "
+      "channels differ (%lld channels fresh live only, %lld replayed only); worst angle "
+      "difference %.3g rad\n",
+      static_cast<long long>(compared_channels), static_cast<long long>(whole),
+      static_cast<long long>(whole_homed), static_cast<long long>(fresh_differ),
+      static_cast<long long>(fresh_live_only), static_cast<long long>(fresh_replay_only), worst);
+  check(paired > 0 && unpaired == 0 && far == 0,
+        "canopen: every live cycle is the replayed cycle of its source_seq, at its instant (" +
+            std::to_string(unpaired) + " missing, " + std::to_string(far) + " too far)");
+  check(raw_differ == 0, "canopen: same raw positions on every channel fresh on both sides (" +
+                             std::to_string(raw_differ) + " cycles differ)");
+  check(pos_differ == 0,
+        "canopen: same joint angles (1e-9 rad, joints not HELD) in every "
+        "pair (" +
+            std::to_string(pos_differ) + " differ)");
+  check(homed_differ == 0,
+        "canopen: same homed in every pair (" + std::to_string(homed_differ) + " differ)");
+  check(whole_homed > 0,
+        "canopen: cycles with every channel fresh and every joint homed "
+        "compared whole (" +
+            std::to_string(whole_homed) + ")");
+  std::printf("VCAN-REPLAY: %s (%d failed)\n", g_failures == 0 ? "PASS" : "FAIL", g_failures);
+  return g_failures == 0 ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -177,7 +436,11 @@ int main(int argc, char** argv) {
   app.add_option("--exodaq", exodaq, "the exodaq tool")->required();
   app.add_option("--source", source, "the source tree (config/vcan.yaml)")->required();
   app.add_option("--work", work, "run-vm-tests' work directory")->required();
+  std::string protocol = "v1";
+  app.add_option("--protocol", protocol, "v1: stage 2's recording; canopen: stage 6's")
+      ->check(CLI::IsMember({"v1", "canopen"}));
   CLI11_PARSE(app, argc, argv);
+  if (protocol == "canopen") return run_canopen(exodaq, source, work);
 
   const std::string candump = work + "/vcan-run.candump";
   const std::string live_path = work + "/vcan-run-live.txt";

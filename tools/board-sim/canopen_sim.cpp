@@ -95,8 +95,8 @@ can::CanIdFilterSet canopen_port_filters(const CanopenSimOptions& options) noexc
 }
 
 CanopenSim::CanopenSim(const sim::SimOptions& rig, const CanopenSimOptions& options,
-                       drivers::CanPort& port, std::FILE* truth)
-    : rig_(rig), options_(options), port_(port), truth_(truth) {
+                       drivers::CanPort& port, std::FILE* truth, std::FILE* answers)
+    : rig_(rig), options_(options), port_(port), truth_(truth), answers_(answers) {
   for (int i = 0; i < kCanopenNodes; ++i) {
     const CanopenNodeOptions& n = options_.nodes[u(i)];
     if (!co::is_node_id(n.node)) {
@@ -177,6 +177,9 @@ std::uint32_t CanopenSim::position_value(int channel, double t_s) const noexcept
 void CanopenSim::power_on(std::int64_t now) {
   origin_ = now;
   settled_ns_ = now;
+  if (truth_ != nullptr) {
+    std::fprintf(truth_, "# origin_mono_ns %lld\n", static_cast<long long>(origin_));
+  }
   powered_ = true;
   apply_faults(now);
   for (auto& n : nodes_) n->power_on(now);
@@ -202,6 +205,7 @@ void CanopenSim::on_sync(const can::CanFrame& frame, std::int64_t at) noexcept {
   const co::Decoded d = co::decode_frame(frame);
   if (d.kind != co::FrameKind::kSync) return;
   last_sync_ns_ = at;
+  sync_ns_[static_cast<std::size_t>(k_ % kSyncHistory)] = at;
   rig_.step_at(k_, at - origin_, frames_, origin_, 0);
   const sim::SimCycle& c = rig_.last_cycle();
   for (int j = 0; j < kCanopenNodes; ++j) {
@@ -272,6 +276,7 @@ void CanopenSim::settle(std::int64_t now) noexcept {
       const int err = port_.is_open() ? send(tx) : -ENODEV;
       if (err == 0) {
         ++counters_.frames_sent;
+        record_answer(f, from);
         continue;
       }
       ++counters_.send_failures;
@@ -280,11 +285,26 @@ void CanopenSim::settle(std::int64_t now) noexcept {
   }
 }
 
+// A TPDO answers the last SYNC before the instant it was due at (a node
+// answers response_ns or its lateness after the SYNC, never before it).
+void CanopenSim::record_answer(const can::CanFrame& frame, int channel) noexcept {
+  if (answers_ == nullptr || co::decode_frame(frame).kind != co::FrameKind::kTpdo) return;
+  const std::int64_t sent = port_.now_mono_ns();
+  for (std::int64_t k = k_ - 1; k >= 0 && k >= k_ - kSyncHistory; --k) {
+    if (sync_ns_[static_cast<std::size_t>(k % kSyncHistory)] < frame.mono_ns) {
+      std::fprintf(answers_, "%lld %d %lld\n", static_cast<long long>(k), channel,
+                   static_cast<long long>(sent));
+      return;
+    }
+  }
+}
+
 void CanopenSim::poll(std::int64_t now) {
   if (!powered_) power_on(now);
   apply_faults(now);
   if (port_.is_open()) {
-    const std::int64_t wall_offset = port_.now_wall_ns() - port_.now_mono_ns();
+    offset_.measure(port_);
+    const std::int64_t wall_offset = offset_.ns();
     std::array<can::CanFrame, 64> rx{};
     for (;;) {
       drivers::CanRxInfo info;
@@ -295,8 +315,10 @@ void CanopenSim::poll(std::int64_t now) {
         const can::CanFrame& f = rx[u(i)];
         if (f.flags != 0) continue;  // error frames, RTR: nothing for a node
         ++counters_.frames_received;
-        std::int64_t at = f.wall_ns != 0 ? f.wall_ns - wall_offset : now;
-        at = std::clamp(at, settled_ns_, now);
+        // A frame is where the kernel stamped it, never before frames
+        // already fed (the nodes' time runs forward).
+        const std::int64_t at =
+            std::max(f.wall_ns != 0 ? f.wall_ns - wall_offset : now, settled_ns_);
         settle(at);  // the nodes' own frames up to the frame's arrival first
         deliver(f, -1, at);
       }

@@ -4,8 +4,12 @@
 // instant asked (a SYNC's arrival for its TPDO), taken modulo the node's total
 // measuring range (0x6002; 0x6001 = the rig's counts per revolution). The
 // manager (the daemon) sends NMT, SDO and, by default, SYNC; every SYNC is
-// one cycle of the truth file, in BoardSim's format. Faults are the node
-// simulator's (canopen::SimFault), scripted in time.
+// one cycle of the truth file, in BoardSim's format; every TPDO sent is a
+// line of the answers file ("k channel sent_mono_ns": the SYNC it answers and
+// when the frame had left), from which a checker knows which answers went out
+// after the next SYNC (a node breaking CiA 301's timing, which the manager
+// cannot see). Faults are the node simulator's (canopen::SimFault), scripted
+// in time.
 // docs/can-protocol.md ("The board simulator", "CANopen nodes").
 #include <array>
 #include <cstdint>
@@ -17,6 +21,7 @@
 #include <vector>
 
 #include "exodaq/common/yaml_reader.hpp"
+#include "exodaq/drivers/can_link.hpp"
 #include "exodaq/drivers/can_port.hpp"
 #include "exodaq/drivers/canopen/node_sim.hpp"
 #include "exodaq/drivers/sim_rig.hpp"
@@ -108,10 +113,11 @@ struct CanopenCounters {
 
 class CanopenSim {
  public:
-  // `truth` may be null. Throws std::invalid_argument on inconsistent options
-  // (rig options, duplicate or invalid node ids, a fault on no node).
+  // `truth` and `answers` may be null. Throws std::invalid_argument on
+  // inconsistent options (rig options, duplicate or invalid node ids, a fault
+  // on no node).
   CanopenSim(const drivers::sim::SimOptions& rig, const CanopenSimOptions& options,
-             drivers::CanPort& port, std::FILE* truth);
+             drivers::CanPort& port, std::FILE* truth, std::FILE* answers = nullptr);
 
   // Powers every node at `now` (simulated time 0: motion, faults, truth).
   void power_on(std::int64_t now);
@@ -148,11 +154,13 @@ class CanopenSim {
   void deliver(const drivers::can::CanFrame& frame, int from, std::int64_t at) noexcept;
   void settle(std::int64_t now) noexcept;
   int send(const drivers::can::CanFrame& frame) noexcept;
+  void record_answer(const drivers::can::CanFrame& frame, int channel) noexcept;
 
   drivers::sim::SimRig rig_;
   CanopenSimOptions options_;
   drivers::CanPort& port_;
   std::FILE* truth_;
+  std::FILE* answers_;
   std::vector<std::unique_ptr<co::EncoderNodeSim>> nodes_;
   std::array<int, kCanopenNodes> joint_of_channel_{};
   std::array<std::int64_t, kCanopenNodes> reference_{};  // last latched index count, by channel
@@ -162,8 +170,12 @@ class CanopenSim {
   bool powered_ = false;
   std::int64_t k_ = 0;
   std::int64_t last_sync_ns_ = 0;
+  // The last SYNCs' instants by k % kSyncHistory: which SYNC a TPDO answers.
+  static constexpr int kSyncHistory = 16;
+  std::array<std::int64_t, kSyncHistory> sync_ns_{};
   std::int64_t settled_ns_ = 0;  // the nodes' time: frames are never fed earlier
   std::uint32_t pending_bits_ = 0;
+  drivers::WallMonoOffset offset_;  // the kernel's receive stamps to CLOCK_MONOTONIC
 };
 
 }  // namespace exodaq::board_sim

@@ -46,6 +46,7 @@ struct Cli {
   std::string iface;
   std::string config_path;
   std::string truth_path;
+  std::string answers_path;
   bool free_run = false;
   std::int64_t seed = -1;
   int board = -1;
@@ -83,6 +84,9 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_option("--truth", c.truth_path,
                  "write one line per cycle: k seq t_s q0..q5 count0..count5 (by channel) "
                  "fault_bits");
+  app.add_option("--answers", c.answers_path,
+                 "canopen: write one line per TPDO sent: k channel mono_ns (the SYNC it "
+                 "answers, its node's channel, CLOCK_MONOTONIC once the frame was sent)");
   app.add_option("--fault", c.faults,
                  "one more fault, as an entry of source.sim.faults: "
                  "'{kind: drop, percent: 10, at_s: 12.5, for_s: 1}' (docs/simulator.md); "
@@ -284,6 +288,13 @@ int run_main(int argc, char** argv) {
       if (!truth) throw std::runtime_error("cannot write " + cli.truth_path);
       exodaq::board_sim::write_truth_header(truth.get());
     }
+    std::unique_ptr<std::FILE, FileCloser> answers;
+    if (!cli.answers_path.empty()) {
+      if (!canopen) throw std::runtime_error("--answers is for --protocol canopen");
+      answers.reset(std::fopen(cli.answers_path.c_str(), "w"));
+      if (!answers) throw std::runtime_error("cannot write " + cli.answers_path);
+      std::fprintf(answers.get(), "# k channel sent_mono_ns\n");
+    }
     std::signal(SIGTERM, on_signal);
     std::signal(SIGINT, on_signal);
     exodaq::drivers::CanPortConfig pc;
@@ -292,7 +303,7 @@ int run_main(int argc, char** argv) {
                          : exodaq::drivers::can::port_filters(options.board.ids, true);
     const auto port = exodaq::drivers::make_socketcan_port(pc);
     if (canopen) {
-      CanopenSim nodes(options, co_options, *port, truth.get());
+      CanopenSim nodes(options, co_options, *port, truth.get(), answers.get());
       std::string ids;
       for (const auto& n : co_options.nodes)
         ids += (ids.empty() ? "" : ",") + std::to_string(n.node);
@@ -302,6 +313,7 @@ int run_main(int argc, char** argv) {
                    co_options.faults.size());
       run_canopen(cli, *port, nodes);
       truth.reset();
+      answers.reset();
       std::fprintf(stderr, "%s\n", nodes.summary().c_str());
       return 0;
     }

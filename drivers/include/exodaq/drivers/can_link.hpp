@@ -37,6 +37,24 @@ class FrameSink {
   ~FrameSink() = default;
 };
 
+// CLOCK_REALTIME − CLOCK_MONOTONIC, for moving the kernel's realtime receive
+// stamps to the monotonic clock. Each measure() reads mono, wall, mono: the
+// wall reading belongs to the bracket's midpoint. The offset only changes
+// when the wall clock is stepped (NTP slews both), so the tightest bracket
+// seen is kept (a reading preempted between the clocks changes nothing)
+// until a reading differs by more than both brackets' widths + 1 µs: a step.
+class WallMonoOffset {
+ public:
+  void reset() noexcept { valid_ = false; }
+  void measure(CanPort& port) noexcept;
+  std::int64_t ns() const noexcept { return ns_; }
+
+ private:
+  std::int64_t ns_ = 0;
+  std::int64_t width_ns_ = 0;
+  bool valid_ = false;
+};
+
 // The link's own counters (the protocol counts its frames itself).
 struct CanLinkStats {
   std::int64_t unstamped_frames = 0;  // no kernel timestamp: stamped with the read time
@@ -83,7 +101,7 @@ class CanLink {
   int send(const can::CanFrame& frame, FrameSink& sink) noexcept;
 
   std::int64_t now_mono_ns() noexcept { return port_->now_mono_ns(); }
-  std::int64_t offset_ns() const noexcept { return offset_ns_; }  // wall − mono
+  std::int64_t offset_ns() const noexcept { return offset_.ns(); }  // wall − mono
   const std::string& interface() const noexcept { return interface_; }
   const CanLinkStats& stats() const noexcept { return stats_; }
 
@@ -91,7 +109,6 @@ class CanLink {
   void diagnose(SourceDiagnostics& out) const noexcept;
 
  private:
-  void measure_offset() noexcept;
   void go_down(int err, FrameSink& sink) noexcept;
 
   std::unique_ptr<CanPort> port_;
@@ -102,9 +119,7 @@ class CanLink {
   bool up_ = false;
   bool socket_may_hold_more_ = false;
   std::int64_t last_open_attempt_mono_ = 0;
-  std::int64_t offset_ns_ = 0;
-  std::int64_t offset_width_ns_ = INT64_MAX;
-  bool offset_valid_ = false;
+  WallMonoOffset offset_;
 };
 
 }  // namespace exodaq::drivers

@@ -5,7 +5,7 @@
 //   interface: can0            1-15 characters
 //   sync: producer             the daemon sends SYNC (consumer: not supported yet)
 //   sync_overflow: 0           0 (SYNC without counter) or 2..240
-//   read_deadline_us: 400      (0, 900]: wait for the TPDOs after SYNC
+//   read_deadline_us: 400      (0, 90000]: wait for the TPDOs after SYNC (at most 9/10 of a period)
 //   reopen_interval_ms: 1000   [10, 60000]
 //   rcvbuf_bytes: 1048576      >= 4096
 //   boot_timeout_ms: 1000      [10, 60000]
