@@ -105,6 +105,7 @@ class SocketCanPort final : public CanPort {
           last_ovfl_ = dropped;
         }
       }
+      if ((h.msg_flags & MSG_CONFIRM) != 0) f.flags |= can::frame_flag::kOwn;
       if (f.wall_ns == 0) ++info.unstamped;
     }
     return out;
@@ -195,6 +196,10 @@ class SocketCanPort final : public CanPort {
     }
     const int one = 1;
     if (setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof one) < 0) return -errno;
+    if (config_.receive_own &&
+        setsockopt(fd, SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &one, sizeof one) < 0) {
+      return -errno;
+    }
     const int rcvbuf = config_.rcvbuf_bytes;
     if (setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &rcvbuf, sizeof rcvbuf) < 0) {
       // Without CAP_NET_ADMIN the kernel caps it at net.core.rmem_max.

@@ -33,6 +33,8 @@ class MemoryCanPort final : public drivers::CanPort {
   int open_error = 0;                 // forced open() error (e.g. EAFNOSUPPORT)
   int send_error = 0;                 // every send() fails with this while set
   std::int64_t pending_drops = 0;     // reported by the next receive (SO_RXQ_OVFL)
+  bool receive_own = false;           // each frame sent comes back flagged kOwn, stamped then
+  std::int64_t send_delay_ns = 0;  // a send happens this long after the clock's reading (preempted)
   int open_calls = 0;
   std::vector<Frame> sent;
   // Called before each clock reading, may move `mono` on (not allocation-free).
@@ -123,7 +125,13 @@ class MemoryCanPort final : public drivers::CanPort {
   int send(const Frame& frame) noexcept override {
     if (!open_) return -EBADF;
     if (send_error != 0) return -send_error;
+    mono += send_delay_ns;
     sent.push_back(frame);
+    if (receive_own) {
+      Frame own = frame;
+      own.flags |= drivers::can::frame_flag::kOwn;
+      push(own, mono);
+    }
     if (on_send) on_send(frame, *this);
     return 0;
   }

@@ -225,6 +225,47 @@ TEST(CanopenAssembler, TpdoOfAnEarlierCycleIsLateNotData) {
   EXPECT_EQ(s.joints[0].position, 14U);
 }
 
+TEST(CanopenAssembler, ItsOwnSyncReadBackIsTheCycleInstantAndEarlierAnswersLate) {
+  Rig r(config_for(2));
+  r.all(10);
+  // The clock read at t, the SYNC on the bus 80 us later (the sender was
+  // preempted in between); node 1's answer to the previous SYNC is stamped
+  // in between and read first.
+  CanFrame sync = r.a.begin_cycle(r.t);
+  sync.flags |= can::frame_flag::kOwn;
+  r.a.on_frame(tpdo(1, 11, r.t + 50 * kUs));
+  EXPECT_EQ(r.a.answered(), 1U);
+  r.a.on_frame(at(sync, r.t + 80 * kUs));
+  EXPECT_EQ(r.a.answered(), 0U);
+  r.a.on_frame(tpdo(2, 12, r.t + 150 * kUs));
+  EXPECT_EQ(r.a.answered(), 2U);
+  r.a.end_cycle(r.t + kDeadline);
+  CycleSample s;
+  ASSERT_TRUE(r.a.poll(s));
+  EXPECT_EQ(s.sync_mono_ns, r.t + 80 * kUs);
+  EXPECT_FALSE(s.joints[0].present);
+  EXPECT_EQ(s.joints[0].faults, joint_fault::kLate | joint_fault::kMissing);
+  EXPECT_TRUE(s.joints[1].present);
+  EXPECT_EQ(s.joints[1].position, 12U);
+  EXPECT_EQ(r.a.stats().syncs_read_back, 1);
+  EXPECT_EQ(r.a.stats().late, 1);
+  EXPECT_EQ(r.a.stats().tpdos, 2 + 1);
+  EXPECT_EQ(r.a.stats().frames, 2 + 2 + 2);  // heartbeats, TPDOs: own frames are not traffic
+  EXPECT_EQ(r.a.stats().foreign_syncs, 0);
+  // A SYNC read back from before the next cycle began (an older one's, read
+  // late) leaves that cycle at its clock reading; a second read back of the
+  // cycle changes nothing.
+  r.t += kMs;
+  r.a.begin_cycle(r.t);
+  r.a.on_frame(at(sync, r.t - 500 * kUs));
+  r.a.on_frame(at(sync, r.t + 10 * kUs));
+  r.a.on_frame(at(sync, r.t + 20 * kUs));
+  r.a.end_cycle(r.t + kDeadline);
+  ASSERT_TRUE(r.a.poll(s));
+  EXPECT_EQ(s.sync_mono_ns, r.t + 10 * kUs);
+  EXPECT_EQ(r.a.stats().syncs_read_back, 2);
+}
+
 TEST(CanopenAssembler, TpdoStampedAfterTheDeadlineIsLateEvenIfReadInTime) {
   AssemblerConfig c = config_for(2);
   c.tpdo_deadline_ns = 400 * kUs;

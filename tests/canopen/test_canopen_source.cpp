@@ -325,6 +325,29 @@ TEST(CanopenSource, EveryCycleCarriesEveryNodesPositionWithItsModulus) {
   EXPECT_EQ(r.port().mono, r.now() + 100 * kUs);
 }
 
+TEST(CanopenSource, TheSampleInstantIsItsSyncReadBackFromTheBus) {
+  Rig r;
+  ASSERT_GE(r.start_up(), 0);
+  // Each SYNC goes out 30 us after the clock reading before it.
+  r.port().send_delay_ns = 30 * kUs;
+  EncoderSample s;
+  ASSERT_EQ(r.cycle(s), ReadStatus::kSample);
+  EXPECT_EQ(s.mono_ns, r.now());  // not read back: the clock reading
+  EXPECT_EQ(r.last_sync(), r.now() + 30 * kUs);
+  r.port().receive_own = true;
+  for (int k = 0; k < 10; ++k) {
+    ASSERT_EQ(r.cycle(s), ReadStatus::kSample) << k;
+    ASSERT_EQ(s.channel_fresh, kAllChannels) << k;
+    ASSERT_EQ(s.mono_ns, r.last_sync()) << k;  // when the nodes latched
+    ASSERT_EQ(s.mono_ns, r.now() + 30 * kUs) << k;
+    for (int j = 0; j < kNodes; ++j) {
+      ASSERT_EQ(s.position[static_cast<std::size_t>(j)], r.expected_position(j)) << k;
+    }
+  }
+  EXPECT_EQ(r.source().assembler().stats().syncs_read_back, 10);
+  EXPECT_EQ(r.source().assembler().stats().late, 0);
+}
+
 TEST(CanopenSource, CatchUpReadDeliversNothing) {
   Rig r;
   ASSERT_GE(r.start_up(), 0);

@@ -171,6 +171,10 @@ WantedIds Assembler::wanted_ids() const noexcept {
 }
 
 void Assembler::on_frame(const CanFrame& frame) noexcept {
+  if ((frame.flags & can::frame_flag::kOwn) != 0) {
+    if (frame.id == cob::kSync && config_.sync_role == SyncRole::kProducer) on_own_sync(frame);
+    return;
+  }
   ++stats_.frames;
   if ((frame.flags & can::frame_flag::kError) != 0) {
     ++stats_.error_frames;
@@ -312,6 +316,35 @@ void Assembler::on_tpdo(int joint, const CanFrame& frame) noexcept {
   n.rx_mono_ns = frame.mono_ns;
 }
 
+void Assembler::on_own_sync(const CanFrame& frame) noexcept {
+  // The stamps are the kernel's realtime ones moved by the link's estimated
+  // offset: a SYNC read back this little before the clock reading that
+  // began its cycle is still this cycle's.
+  constexpr std::int64_t kStampSlackNs = 20'000;
+  if (!open_ || read_back_ || frame.mono_ns == 0) return;
+  if (frame.mono_ns < current_.sync_mono_ns - kStampSlackNs) return;  // an older SYNC's
+  read_back_ = true;
+  current_.sync_mono_ns = frame.mono_ns;
+  ++stats_.syncs_read_back;
+  for (int j = 0; j < config_.joint_count; ++j) {
+    NodeState& n = nodes_[at(j)];
+    if (!n.got_tpdo || n.rx_mono_ns == 0 || n.rx_mono_ns >= frame.mono_ns) continue;
+    n.got_tpdo = false;  // stamped before this SYNC was on the bus
+    n.reference_changed = false;
+    n.events |= joint_fault::kLate;
+    --stats_.tpdos;
+    ++stats_.late;
+  }
+}
+
+std::uint32_t Assembler::answered() const noexcept {
+  std::uint32_t mask = 0;
+  for (int j = 0; j < config_.joint_count; ++j) {
+    if (open_ && nodes_[at(j)].got_tpdo) mask |= 1U << j;
+  }
+  return mask;
+}
+
 void Assembler::on_emcy(int joint, const EmcyPayload& emcy) noexcept {
   NodeState& n = nodes_[at(joint)];
   n.heard = true;
@@ -347,6 +380,7 @@ void Assembler::open_cycle(std::int64_t sync_ns, bool has_counter, std::uint8_t 
   pending_flags_ = 0;
   current_.joint_count = config_.joint_count;
   open_ = true;
+  read_back_ = false;
 }
 
 bool Assembler::due(int joint) const noexcept {

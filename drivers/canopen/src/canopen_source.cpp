@@ -142,6 +142,7 @@ CanPortConfig port_config(const CanopenSourceConfig& config) {
   CanPortConfig p;
   p.interface = config.interface;
   p.rcvbuf_bytes = config.rcvbuf_bytes;
+  p.receive_own = true;  // the SYNC's stamp on the bus is the sample's instant
   const auto assembler = std::make_unique<Assembler>(assembler_config(config));
   const WantedIds wanted = assembler->wanted_ids();
   for (int i = 0; i < wanted.count; ++i) p.filters.add({wanted.ids[at(i)], can::kStandardIdMask});
@@ -201,10 +202,6 @@ CanopenSource::CanopenSource(const CanopenSourceConfig& config, std::unique_ptr<
       startup_(startup_config(config_)),
       assembler_(assembler_config(config_)),
       link_(checked(std::move(port)), config_.interface, config_.reopen_interval_ns) {
-  for (int j = 0; j < config_.joint_count; ++j) {
-    const CanopenJoint& c = config_.joints[at(j)];
-    tpdo_ids_[at(j)] = tpdo_cob_id(c.node, c.tpdo);
-  }
   held_.channel_fresh = 0;
 }
 
@@ -239,14 +236,15 @@ void CanopenSource::on_frame(const can::CanFrame& frame) noexcept {
     assembler_.on_frame(frame);  // counted there too, never data
     return;
   }
+  if ((frame.flags & can::frame_flag::kOwn) != 0) {  // what this source sent, read back
+    assembler_.on_frame(frame);
+    arrived_ = assembler_.answered();
+    return;
+  }
   if (bus_state_ == BusState::kUnknown) bus_state_ = BusState::kActive;
   startup_.on_frame(frame, frame.mono_ns);
-  const std::int64_t accepted = assembler_.stats().tpdos;
   assembler_.on_frame(frame);
-  if (assembler_.stats().tpdos == accepted) return;
-  for (int j = 0; j < config_.joint_count; ++j) {
-    if (tpdo_ids_[at(j)] == frame.id) arrived_ |= 1U << j;
-  }
+  arrived_ = assembler_.answered();
 }
 
 void CanopenSource::on_rx_overflows(std::int64_t dropped) noexcept {
@@ -453,6 +451,7 @@ void CanopenSource::diagnose(SourceDiagnostics& out) const noexcept {
   out.add("sync_sent", detail_.sync_sent);
   out.add("sync_send_failures", detail_.sync_send_failures);
   out.add("late_syncs", detail_.late_syncs);
+  out.add("syncs_read_back", a.syncs_read_back);
   out.add("tpdos", a.tpdos);
   out.add("missing_tpdos", a.missing);
   out.add("late_tpdos", a.late);
@@ -527,10 +526,6 @@ class CanopenFrameAssembler final : public FrameAssembler {
       : config_(config),
         assembler_(replay_assembler_config(config)),
         window_ns_(std::min(config.read_deadline_ns, period_ns - period_ns / 10)) {
-    for (int j = 0; j < config_.joint_count; ++j) {
-      const CanopenJoint& c = config_.joints[at(j)];
-      tpdo_ids_[at(j)] = tpdo_cob_id(c.node, c.tpdo);
-    }
     held_.channel_fresh = 0;
   }
 
@@ -550,17 +545,14 @@ class CanopenFrameAssembler final : public FrameAssembler {
     } else if (bus_state_ == BusState::kUnknown) {
       bus_state_ = BusState::kActive;
     }
-    const std::int64_t tpdos = assembler_.stats().tpdos;
     assembler_.on_frame(frame);
     if (frame.id == cob::kSync && frame.flags == 0 && assembler_.cycle_open()) {
       sync_ns_ = frame.mono_ns;  // a SYNC opened the next cycle
       answered_ |= arrived_;
-      arrived_ = 0;
     }
-    if (assembler_.stats().tpdos == tpdos) return;
-    for (int j = 0; j < config_.joint_count; ++j) {
-      if (tpdo_ids_[at(j)] == frame.id) arrived_ |= 1U << j;
-    }
+    const std::uint32_t before = arrived_;
+    arrived_ = assembler_.answered();
+    if (arrived_ == before) return;
     if (answered_ != 0 && assembler_.cycle_open() && (arrived_ & answered_) == answered_) {
       assembler_.end_cycle(frame.mono_ns);
     }
@@ -585,7 +577,6 @@ class CanopenFrameAssembler final : public FrameAssembler {
   CanopenSourceConfig config_;
   Assembler assembler_;
   std::int64_t window_ns_;  // the live poll deadline after a SYNC
-  std::array<std::uint32_t, kMaxNodes> tpdo_ids_{};
   CycleSample cycle_{};
   EncoderSample held_{};
   SampleCounts counts_{};

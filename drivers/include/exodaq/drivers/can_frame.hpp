@@ -21,6 +21,9 @@ inline constexpr std::uint8_t kExtended = 1U << 0;  // 29-bit identifier (CAN_EF
 inline constexpr std::uint8_t kRtr = 1U << 1;       // remote transmission request (CAN_RTR_FLAG)
 inline constexpr std::uint8_t kError = 1U << 2;  // error frame from the controller (CAN_ERR_FLAG)
 inline constexpr std::uint8_t kFd = 1U << 3;     // CAN FD frame (struct canfd_frame)
+// A frame this socket sent, received back as it went on the bus
+// (CanPortConfig::receive_own: CAN_RAW_RECV_OWN_MSGS, MSG_CONFIRM).
+inline constexpr std::uint8_t kOwn = 1U << 4;
 }  // namespace frame_flag
 
 inline constexpr std::uint8_t kMaxClassicDlc = 8;

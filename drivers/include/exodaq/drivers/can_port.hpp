@@ -32,6 +32,9 @@ struct CanPortConfig {
   std::string interface = "can0";
   can::CanIdFilterSet filters{};
   int rcvbuf_bytes = 1 << 20;
+  // Also receive the frames this socket sends (flag kOwn), stamped by the
+  // kernel as they go on the bus: a SYNC's true instant.
+  bool receive_own = false;
 };
 
 class CanPort {

@@ -130,6 +130,7 @@ struct AssemblerStats {
   std::int64_t sync_counter_mismatches = 0;
   std::int64_t foreign_syncs = 0;
   std::int64_t queue_overflows = 0;
+  std::int64_t syncs_read_back = 0;  // producer: own SYNCs whose stamp became the cycle's instant
 };
 
 // The identifiers the assembler wants from the transport: SYNC, and per node
@@ -156,7 +157,15 @@ class Assembler {
 
   // Every received frame (mono_ns: its receive stamp, 0 when unknown).
   // Consumer: a SYNC closes a cycle still open and opens the next one.
+  // Producer: a SYNC flagged kOwn is one this manager sent, read back with
+  // the kernel's stamp of when it went on the bus. The first one stamped no
+  // earlier than the open cycle's begin_cycle() (an older SYNC's was sent
+  // before it) moves the cycle's instant there, and a TPDO accepted stamped
+  // before it becomes late: it answered an earlier SYNC. Every other own
+  // frame is ignored.
   void on_frame(const CanFrame& frame) noexcept;
+  // The joints whose TPDO of the open cycle is accepted.
+  std::uint32_t answered() const noexcept;
 
   // At the cycle's deadline: closes the open cycle (nothing when none is).
   void end_cycle(std::int64_t now) noexcept;
@@ -196,6 +205,7 @@ class Assembler {
   void flag_cycle(std::uint32_t flags) noexcept;  // the open cycle's, or the next one's
   void on_rejected(int joint, const CanFrame& frame, Reject why) noexcept;
   void on_sync(const CanFrame& frame, const SyncPayload& sync) noexcept;
+  void on_own_sync(const CanFrame& frame) noexcept;
   void on_tpdo(int joint, const CanFrame& frame) noexcept;
   void on_emcy(int joint, const EmcyPayload& emcy) noexcept;
   void on_error_control(int joint, const CanFrame& frame, NmtState state) noexcept;
@@ -217,6 +227,7 @@ class Assembler {
   bool sync_counter_known_ = false;
   std::uint8_t last_sync_counter_ = 0;  // consumer: received; producer: sent
   std::uint32_t pending_flags_ = 0;     // cycle_flag bits for the next cycle opened
+  bool read_back_ = false;              // producer: the open cycle's SYNC was read back
 
   std::array<CycleSample, kQueueCapacity> queue_{};
   int queue_head_ = 0;

@@ -215,7 +215,6 @@ class CanopenSource final : public EncoderSource, private FrameSink {
   bool restart_pending_ = false;  // the link came up: begin the start-up again
   std::uint32_t expected_ = 0;    // joints whose TPDO this cycle waits for
   std::uint32_t arrived_ = 0;     // joints whose TPDO this cycle was accepted
-  std::array<std::uint32_t, kMaxNodes> tpdo_ids_{};
   CycleSample cycle_{};
   EncoderSample held_{};  // the last sample delivered: what a missing one repeats
 };
