@@ -411,8 +411,8 @@ INSTANTIATE_TEST_SUITE_P(
         FaultCase{SimFault::kEmcy, 2, kEmcy, kEmcy, 0, false},
         FaultCase{SimFault::kTpdoMissing, 3, kMissing, kMissing, 0, false},
         // 0.7 ms after its SYNC, past the 0.5 ms deadline: missing in its own
-        // cycle, late in the next.
-        FaultCase{SimFault::kTpdoLate, 4, kLate, kLate | kMissing, 0, false},
+        // cycle (the answer, read after the cycle closed, is counted late).
+        FaultCase{SimFault::kTpdoLate, 4, kMissing, kLate | kMissing, 0, false},
         FaultCase{SimFault::kWrongPdoLength, 5, kWrongLength, kWrongLength | kMissing, 0, false},
         FaultCase{SimFault::kSyncCounterMismatch, 0, 0, 0, cycle_flag::kSyncCounterMismatch, true}),
     [](const ::testing::TestParamInfo<FaultCase>& info) {

@@ -33,8 +33,12 @@
 // live, its logged kernel stamp replayed: within half a period). For every pair: the
 // raw position of each channel fresh on both sides equal, each joint's angle
 // not HELD on either side equal to 1e-9 rad, `homed` the same; a channel fresh
-// on one side only (its TPDO stamped near the wait's end, or queued to the
-// live socket after the live wait) is counted and printed.
+// on one side only is counted and printed: its TPDO was stamped in the wait
+// but queued to the live socket after it (the kernel stamps a vcan frame as
+// it is sent and delivers it later, under TCG more than a wait later). From
+// such a cycle on, the joint may home one cycle apart on the two sides: a
+// `homed` (and angle) difference on a joint is a failure only if no fresh
+// difference on it came first.
 #include <lcm/lcm-cpp.hpp>
 
 #include <CLI/CLI.hpp>
@@ -327,11 +331,12 @@ int run_canopen(const std::string& exodaq, const std::string& source, const std:
   constexpr std::uint32_t kHeld = 64;  // joint_state_t::JOINT_HELD
   const auto half_period_us = static_cast<std::int64_t>(0.5e6 / rate_hz);
   std::int64_t cycles = 0, paired = 0, unpaired = 0, far = 0, raw_differ = 0, pos_differ = 0,
-               homed_differ = 0, fresh_differ = 0, fresh_live_only = 0, fresh_replay_only = 0,
-               compared_channels = 0, whole = 0, whole_homed = 0;
+               homed_differ = 0, homed_moved = 0, fresh_differ = 0, fresh_live_only = 0,
+               fresh_replay_only = 0, compared_channels = 0, whole = 0, whole_homed = 0;
   std::int64_t worst_dt_us = 0, last_source_seq = -1;
   double worst = 0;
   int reported = 0;
+  std::uint32_t fresh_differed = 0;  // joints with a fresh difference so far
   for (const CoCycle& l : live) {
     // The first live message of each source_seq (a cycle with none closed repeats it).
     if (l.source_seq < 0 || l.source_seq <= last_source_seq) continue;
@@ -352,6 +357,7 @@ int run_canopen(const std::string& exodaq, const std::string& source, const std:
       continue;
     }
     ++paired;
+    fresh_differed |= l.fresh ^ p.fresh;
     if (l.fresh != p.fresh) {
       ++fresh_differ;
       fresh_live_only += std::popcount(l.fresh & ~p.fresh);
@@ -365,19 +371,25 @@ int run_canopen(const std::string& exodaq, const std::string& source, const std:
       ++whole;
       if (std::all_of(l.homed.begin(), l.homed.end(), [](bool h) { return h; })) ++whole_homed;
     }
-    bool same_raw = true, same_pos = true;
+    bool same_raw = true, same_pos = true, same_homed = true;
     for (std::size_t j = 0; j < 6; ++j) {
       const std::uint32_t bit = 1U << j;
       if ((l.fresh & p.fresh & bit) != 0) {
         ++compared_channels;
         same_raw = same_raw && l.raw[j] == p.raw[j];
       }
+      if (l.homed[j] != p.homed[j]) {
+        if ((fresh_differed & bit) != 0) {
+          ++homed_moved;  // homed a cycle apart after a delivery difference
+          continue;
+        }
+        same_homed = false;
+      }
       if ((l.flags[j] & kHeld) != 0 || (p.flags[j] & kHeld) != 0) continue;
       const double d = std::fabs(p.pos[j] - l.pos[j]);
       worst = std::max(worst, d);
       same_pos = same_pos && d <= 1e-9;
     }
-    const bool same_homed = p.homed == l.homed;
     if (!same_raw) ++raw_differ;
     if (!same_pos) ++pos_differ;
     if (!same_homed) ++homed_differ;
@@ -404,11 +416,12 @@ int run_canopen(const std::string& exodaq, const std::string& source, const std:
   std::printf(
       "VCAN-REPLAY: canopen: %lld channel positions compared (fresh on both sides), %lld "
       "cycles with all six fresh on both (%lld every joint homed); %lld cycles whose fresh "
-      "channels differ (%lld channels fresh live only, %lld replayed only); worst angle "
-      "difference %.3g rad\n",
+      "channels differ (%lld channels fresh live only, %lld replayed only), after which %lld "
+      "joint-cycles were homed on one side only; worst angle difference %.3g rad\n",
       static_cast<long long>(compared_channels), static_cast<long long>(whole),
       static_cast<long long>(whole_homed), static_cast<long long>(fresh_differ),
-      static_cast<long long>(fresh_live_only), static_cast<long long>(fresh_replay_only), worst);
+      static_cast<long long>(fresh_live_only), static_cast<long long>(fresh_replay_only),
+      static_cast<long long>(homed_moved), worst);
   check(paired > 0 && unpaired == 0 && far == 0,
         "canopen: every live cycle is the replayed cycle of its source_seq, at its instant (" +
             std::to_string(unpaired) + " missing, " + std::to_string(far) + " too far)");
@@ -419,7 +432,8 @@ int run_canopen(const std::string& exodaq, const std::string& source, const std:
         "pair (" +
             std::to_string(pos_differ) + " differ)");
   check(homed_differ == 0,
-        "canopen: same homed in every pair (" + std::to_string(homed_differ) + " differ)");
+        "canopen: same homed in every pair but after a fresh difference on the joint (" +
+            std::to_string(homed_differ) + " differ)");
   check(whole_homed > 0,
         "canopen: cycles with every channel fresh and every joint homed "
         "compared whole (" +

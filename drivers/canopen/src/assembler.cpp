@@ -280,8 +280,10 @@ void Assembler::on_tpdo(int joint, const CanFrame& frame) noexcept {
   }
   // A node answers a SYNC after it was sent: a frame stamped before this
   // cycle's SYNC, or arriving while no cycle is open, belongs to an earlier
-  // cycle that was closed without it; one stamped after the deadline is late
-  // for this one.
+  // cycle that was closed without it (counted; that cycle's channel was
+  // already missing); one stamped after the deadline is late for this one
+  // (flagged on it). Which cycle a late answer is charged to depends on its
+  // stamp only, never on when it was read: a candump replay charges it alike.
   const std::int64_t stamp = frame.mono_ns;
   const std::int64_t deadline = config_.tpdo_deadline_ns;
   const bool this_cycle = open_ && (stamp == 0 || stamp >= current_.sync_mono_ns);
@@ -293,7 +295,7 @@ void Assembler::on_tpdo(int joint, const CanFrame& frame) noexcept {
   }
   if (!in_time) {
     ++stats_.late;
-    n.events |= joint_fault::kLate;
+    if (this_cycle) n.events |= joint_fault::kLate;
     return;
   }
   if (n.got_tpdo) {
@@ -329,9 +331,8 @@ void Assembler::on_own_sync(const CanFrame& frame) noexcept {
   for (int j = 0; j < config_.joint_count; ++j) {
     NodeState& n = nodes_[at(j)];
     if (!n.got_tpdo || n.rx_mono_ns == 0 || n.rx_mono_ns >= frame.mono_ns) continue;
-    n.got_tpdo = false;  // stamped before this SYNC was on the bus
+    n.got_tpdo = false;  // stamped before this SYNC was on the bus: an earlier one's
     n.reference_changed = false;
-    n.events |= joint_fault::kLate;
     --stats_.tpdos;
     ++stats_.late;
   }

@@ -27,7 +27,7 @@ inline constexpr int kMaxNodes = 16;
 // JointReading::faults bits.
 namespace joint_fault {
 inline constexpr std::uint32_t kMissing = 1U << 0;  // no valid TPDO this cycle
-inline constexpr std::uint32_t kLate = 1U << 1;     // a TPDO after its deadline arrived (dropped)
+inline constexpr std::uint32_t kLate = 1U << 1;     // its TPDO stamped after the deadline (dropped)
 inline constexpr std::uint32_t kWrongLength = 1U << 2;     // a TPDO of the wrong length arrived
 inline constexpr std::uint32_t kDuplicate = 1U << 3;       // a second TPDO in this cycle (dropped)
 inline constexpr std::uint32_t kNeverBooted = 1U << 4;     // nothing heard since start
