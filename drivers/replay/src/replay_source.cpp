@@ -30,8 +30,9 @@ class CountingSink final : public EntrySink {
     return true;
   }
   std::int64_t count() const noexcept { return count_; }
+  // In double: a damaged file's instants may lie further apart than int64 holds.
   double duration_s() const noexcept {
-    return static_cast<double>(last_mono_ns_ - first_mono_ns_) * 1e-9;
+    return (static_cast<double>(last_mono_ns_) - static_cast<double>(first_mono_ns_)) * 1e-9;
   }
 
  private:
