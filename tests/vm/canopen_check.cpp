@@ -10,12 +10,13 @@
 // SYNC of truth line k = s. A cycle's sample repeats the last one's
 // source_seq only when no cycle was closed (MISSING): the first message of
 // each source_seq (increasing) is matched, the others are not. The match is
-// verified by the instants, all on the VM's CLOCK_MONOTONIC: the daemon's
-// mono_ns (its clock read before sending the SYNC) precedes the truth line's
-// instant (the SYNC's kernel stamp at the simulator), which precedes the
-// next cycle's mono_ns; a SYNC the simulator did not see would make a truth
-// line the next SYNC's and fail that check. Neither depends on how late
-// either process ran.
+// verified by the instants, all on the VM's CLOCK_MONOTONIC: the sample's
+// mono_ns (its SYNC's kernel stamp read back, or the clock reading before
+// sending it) is no later than the truth line's instant (the same SYNC's
+// stamp at the simulator), which precedes the next cycle's mono_ns, both
+// within the 1 ms the stamps' conversions may differ by; a SYNC the
+// simulator did not see would make a truth line the next SYNC's and fail
+// that check. Neither depends on how late either process ran.
 //
 // It checks, on the matched cycles:
 //   - every valid sample (palm_pose_t.valid) has no invalidating flag, every
@@ -388,11 +389,10 @@ int main(int argc, char** argv) {
     by_k[static_cast<std::size_t>(r.k)] = &r;
     ++matched;
   }
-  // Causally, on the one CLOCK_MONOTONIC of the VM: the daemon reads its
-  // clock, then sends SYNC k, which the nodes receive (truth line k's
-  // instant), before it reads its clock for cycle k + 1. A SYNC the nodes
-  // missed would make truth line k the daemon's SYNC k + 1, received after
-  // that clock reading.
+  // Causally, on the one CLOCK_MONOTONIC of the VM: cycle k's instant is
+  // SYNC k's stamp (read back) or the clock reading before sending it; the
+  // nodes receive it (truth line k's instant) before cycle k + 1 begins. A
+  // SYNC the nodes missed would make truth line k the daemon's SYNC k + 1.
   const std::int64_t origin = read_origin(truth_path);
   std::int64_t acausal = 0, worst_lead = INT64_MIN, worst_after_next = INT64_MIN;
   for (std::size_t k = 0; origin != 0 && k < by_k.size(); ++k) {
@@ -411,11 +411,11 @@ int main(int argc, char** argv) {
   std::printf(
       "CANOPEN-CHECK: %lld cycles received, %lld matched to a truth line by source_seq (%lld "
       "repeating the last source_seq: no cycle closed; %lld after the simulator's last SYNC); "
-      "the daemon's clock read before its SYNC reached the nodes by at least %.3f ms, the SYNC "
-      "reached them before the daemon's next cycle by at least %.3f ms\n",
+      "sample instant minus the SYNC's stamp at the nodes at most %.3f ms, the SYNC at the nodes "
+      "before the next cycle's instant by at least %.3f ms\n",
       static_cast<long long>(received), static_cast<long long>(matched),
       static_cast<long long>(unmatched_repeat), static_cast<long long>(beyond_truth),
-      static_cast<double>(-worst_lead) / 1e6, static_cast<double>(-worst_after_next) / 1e6);
+      static_cast<double>(worst_lead) / 1e6, static_cast<double>(-worst_after_next) / 1e6);
   check(origin != 0, "the truth gives the simulator's start (# origin_mono_ns)");
   check(matched > 0 && acausal == 0,
         "every matched cycle's SYNC reached the nodes after the daemon's cycle began and before "
