@@ -39,6 +39,9 @@ class MemoryCanPort final : public drivers::CanPort {
   std::vector<Frame> sent;
   // Called before each clock reading, may move `mono` on (not allocation-free).
   std::function<void(MemoryCanPort&)> on_now;
+  // Called by wait_readable() first: a simulated peer may run up to the
+  // deadline, pushing what it sends (not allocation-free).
+  std::function<void(MemoryCanPort&, std::int64_t deadline)> on_wait;
   // Called for each frame sent (e.g. a board answering SYNC).
   std::function<void(const Frame&, MemoryCanPort&)> on_send;
   // The socket's receive filter: frames it refuses are not queued (empty: all
@@ -139,6 +142,7 @@ class MemoryCanPort final : public drivers::CanPort {
   int wait_readable(std::int64_t deadline) noexcept override {
     if (!open_) return -EBADF;
     if (pending_error_ != 0) return 1;
+    if (on_wait) on_wait(*this, deadline);
     if (size_ > 0 && front().arrival <= deadline) {
       advance_to(front().arrival);
       return 1;

@@ -816,8 +816,6 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         BadCase{"interface_too_long", "can1", "can0123456789abcd", 4,
                 "source.canopen.interface must be a network interface name (1-15 characters)"},
-        BadCase{"sync_consumer", "sync: producer", "sync: consumer", 5,
-                "source.canopen.sync: consumer is not supported yet"},
         BadCase{"sync_unknown", "sync: producer", "sync: both", 5,
                 "'sync' must be one of producer, consumer"},
         BadCase{"sync_overflow_reserved", "sync_overflow: 0", "sync_overflow: 1", 6,

@@ -17,6 +17,7 @@
 #include "canopen_sim.hpp"
 #include "exodaq/common/yaml_reader.hpp"
 #include "exodaq/drivers/canopen/assembler.hpp"
+#include "exodaq/drivers/canopen/canopen_source.hpp"
 #include "exodaq/drivers/canopen/startup.hpp"
 #include "memory_can_port.hpp"
 
@@ -486,6 +487,185 @@ TEST(CanopenSim, NodeProducingSyncAndItsCounterMismatch) {
   }
   EXPECT_GT(mismatches, 0);
   EXPECT_GT(b.sim().counters().syncs, 300);
+}
+
+// --- the daemon's canopen source as SYNC consumer ------------------------------
+
+using drivers::CycleTime;
+using drivers::EncoderSample;
+using drivers::ReadStatus;
+namespace sample_flag = drivers::sample_flag;
+
+// CanopenSource (sync: consumer) on one in-memory port, the simulator with
+// node 1 producing SYNC on another, the two wired as one bus. The simulator
+// runs in 10 us steps up to each clock reading of the source, so its frames
+// carry the stamps of their due instants.
+class ConsumerBench {
+ public:
+  static constexpr std::int64_t kSimStep = 10 * kUs;
+
+  explicit ConsumerBench(std::int64_t sync_period_ns, std::vector<CanopenFault> faults = {}) {
+    CanopenSimOptions o;  // nodes 1..6, absolute, total range 2^25
+    o.faults = std::move(faults);
+    o.sync_producer = true;
+    o.sync_period_ns = sync_period_ns;
+    const drivers::can::CanIdFilterSet sim_filters = canopen_port_filters(o);
+    sim_port_.admit = [sim_filters](const drivers::can::CanFrame& f) {
+      return sim_filters.passes(f.id);
+    };
+    EXPECT_EQ(sim_port_.open(), 0);
+    sim_ = std::make_unique<CanopenSim>(sim::SimOptions{}, o, sim_port_, nullptr);
+
+    CanopenSourceConfig c;
+    c.interface = "vcan0";
+    c.sync = SyncRole::kConsumer;
+    c.boot_timeout_ns = 100 * kMs;
+    c.sdo_timeout_ns = 20 * kMs;
+    for (int i = 0; i < kCanopenNodes; ++i) {
+      CanopenJoint& j = c.joints[static_cast<std::size_t>(i)];
+      j.node = static_cast<NodeId>(i + 1);
+      j.total_range = kRange;
+    }
+    const drivers::can::CanIdFilterSet filters = port_config(c).filters;
+    auto port = std::make_unique<test::MemoryCanPort>();
+    port_ = port.get();
+    port_->admit = [filters](const drivers::can::CanFrame& f) { return filters.passes(f.id); };
+    port_->on_send = [this](const drivers::can::CanFrame& f, test::MemoryCanPort& p) {
+      sim_port_.push(f, p.mono);
+    };
+    sim_port_.on_send = [this](const drivers::can::CanFrame& f, test::MemoryCanPort& p) {
+      port_->push(f, p.mono);
+    };
+    port_->on_now = [this](test::MemoryCanPort& p) { run_sim_to(p.mono); };
+    port_->on_wait = [this](test::MemoryCanPort& p, std::int64_t deadline) {
+      // The simulator runs on until it sends something or the wait ends.
+      while (p.queued() == 0 && sim_t_ + kSimStep <= deadline) run_sim_to(sim_t_ + kSimStep);
+    };
+    sim_t_ = port_->mono;
+    source_ = std::make_unique<CanopenSource>(c, std::move(port));
+    source_->start();
+  }
+
+  CanopenSource& source() { return *source_; }
+  CanopenSim& sim() { return *sim_; }
+  std::int64_t now() const { return t_; }  // the last wake
+
+  // One loop wake (and its catch-up reads), 1 ms after the last; the
+  // samples delivered are appended to `out`.
+  ReadStatus wake(std::vector<EncoderSample>& out) {
+    t_ += kMs;
+    port_->advance_to(t_);
+    CycleTime time{t_, t_, kMs, cycle_++, false};
+    EncoderSample s;
+    const ReadStatus r = source_->read(time, s);
+    if (r == ReadStatus::kSample || r == ReadStatus::kNoSample) out.push_back(s);
+    for (int k = 0; k < 16 && source_->backlog() > 0; ++k) {
+      time.catch_up = true;
+      if (source_->read(time, s) == ReadStatus::kSample) out.push_back(s);
+    }
+    return r;
+  }
+
+ private:
+  void run_sim_to(std::int64_t t) {
+    while (sim_t_ + kSimStep <= t) {
+      sim_t_ += kSimStep;
+      sim_port_.mono = sim_t_;
+      sim_->poll(sim_t_);
+    }
+  }
+
+  test::MemoryCanPort sim_port_;
+  test::MemoryCanPort* port_ = nullptr;
+  std::unique_ptr<CanopenSim> sim_;
+  std::unique_ptr<CanopenSource> source_;
+  std::int64_t sim_t_ = 0;
+  std::int64_t t_ = 5'000'000'000;
+  std::int64_t cycle_ = 0;
+};
+
+// Every SYNC the producer sent after the start-up is one sample, once, in
+// order, at the SYNC's instant, with every node's position at that instant;
+// a wake that finds no cycle closed publishes nothing (never MISSING).
+void expect_every_sync_once(std::int64_t sync_period_ns, bool expect_idle_wakes,
+                            bool expect_two_in_a_wake) {
+  ConsumerBench b(sync_period_ns);
+  std::vector<EncoderSample> samples;
+  for (int k = 0; k < 3000 && !b.source().cycling(); ++k) b.wake(samples);
+  ASSERT_TRUE(b.source().cycling());
+  samples.clear();
+  int idle = 0, two = 0;
+  for (int k = 0; k < 1000; ++k) {
+    const std::size_t before = samples.size();
+    const ReadStatus r = b.wake(samples);
+    ASSERT_NE(r, ReadStatus::kNoSample) << k;
+    idle += r == ReadStatus::kNothingDue;
+    two += samples.size() - before >= 2;
+  }
+  ASSERT_GT(samples.size(), 900U);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const EncoderSample& s = samples[i];
+    ASSERT_EQ(s.flags, 0U) << i;
+    ASSERT_EQ(s.channel_fresh, 0x3FU) << i;
+    if (i > 0) {
+      ASSERT_EQ(s.seq, samples[i - 1].seq + 1) << i;
+      ASSERT_EQ(s.mono_ns - samples[i - 1].mono_ns, sync_period_ns) << i;
+    }
+    const double t = b.sim().sim_time_s(s.mono_ns);
+    for (int c = 0; c < kCanopenNodes; ++c) {
+      ASSERT_EQ(s.position[static_cast<std::size_t>(c)], b.sim().position_value(c, t))
+          << i << " " << c;
+    }
+  }
+  EXPECT_EQ(idle > 0, expect_idle_wakes) << idle;
+  EXPECT_EQ(two > 0, expect_two_in_a_wake) << two;
+  EXPECT_EQ(b.source().assembler().stats().queue_overflows, 0);
+  EXPECT_EQ(b.source().detail().sync_sent, 0);  // the consumer sends none
+}
+
+TEST(CanopenConsumer, ProducerAtTheLoopRate) {
+  expect_every_sync_once(kMs, false, false);
+}
+
+TEST(CanopenConsumer, ProducerSlowerThanTheLoop) {
+  expect_every_sync_once(kMs + 10 * kUs, true, false);
+}
+
+TEST(CanopenConsumer, ProducerFasterThanTheLoop) {
+  expect_every_sync_once(kMs - 10 * kUs, false, true);
+}
+
+TEST(CanopenConsumer, NoSyncForOneAndAHalfPeriodsIsMissing) {
+  // At 2 s the producing node falls silent (its SYNC with it).
+  ConsumerBench b(kMs, {{SimFault::kNeverBoots, 0, 2.0, 0.0}});
+  std::vector<EncoderSample> samples;
+  for (int k = 0; k < 3000 && !b.source().cycling(); ++k) b.wake(samples);
+  ASSERT_TRUE(b.source().cycling());
+  std::int64_t last_sync = 0;
+  while (b.sim().sim_time_s(last_sync) < 1.95) {
+    samples.clear();
+    ASSERT_NE(b.wake(samples), ReadStatus::kNoSample);
+    if (!samples.empty()) last_sync = samples.back().mono_ns;
+  }
+  // Once no SYNC came for one and a half periods, every wake is MISSING;
+  // never before.
+  int missing = 0;
+  for (int k = 0; k < 100; ++k) {
+    samples.clear();
+    const ReadStatus r = b.wake(samples);
+    if (r != ReadStatus::kNoSample && !samples.empty()) last_sync = samples.back().mono_ns;
+    const bool overdue = b.now() - last_sync > kMs + kMs / 2;
+    ASSERT_EQ(r == ReadStatus::kNoSample, overdue) << k;
+    if (r == ReadStatus::kNoSample) {
+      ++missing;
+      ASSERT_EQ(samples.size(), 1U);
+      EXPECT_NE(samples[0].flags & sample_flag::kMissing, 0U);
+      EXPECT_FALSE(samples[0].present);
+      EXPECT_EQ(samples[0].mono_ns, b.now());
+    }
+  }
+  EXPECT_LT(b.sim().sim_time_s(last_sync), 2.0);
+  EXPECT_GE(missing, 40);
 }
 
 }  // namespace

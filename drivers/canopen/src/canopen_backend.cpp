@@ -159,11 +159,7 @@ std::shared_ptr<const BackendSettings> parse_canopen(exodaq::MapReader* s, exoda
                 kSection + ".interface must be a network interface name (1-15 characters)");
   }
   const std::string sync = s->choice_or("sync", {"producer", "consumer"}, "producer");
-  if (sync == "consumer") {
-    s->fail_key("sync", kSection +
-                            ".sync: consumer is not supported yet; the daemon must produce the "
-                            "SYNC (sync: producer)");
-  }
+  c.sync = sync == "consumer" ? SyncRole::kConsumer : SyncRole::kProducer;
   const std::int64_t overflow = s->integer_or("sync_overflow", 0);
   if (!is_sync_overflow(static_cast<int>(overflow)) || overflow < 0 || overflow > 240) {
     s->fail_key("sync_overflow", kSection + ".sync_overflow must be 0 or 2..240");
@@ -193,8 +189,10 @@ std::unique_ptr<FrameAssembler> canopen_assembler(const BackendSettings* setting
 std::string CanopenSettings::describe() const {
   const CanopenSourceConfig& c = config;
   std::ostringstream s;
-  s << "{interface: " << c.interface << ", sync: producer, sync_overflow: "
-    << static_cast<int>(c.sync_overflow) << ", read_deadline_us: " << c.read_deadline_ns / 1000.0
+  s << "{interface: " << c.interface << ", sync: "
+    << (c.sync == SyncRole::kConsumer ? "consumer" : "producer")
+    << ", sync_overflow: " << static_cast<int>(c.sync_overflow)
+    << ", read_deadline_us: " << c.read_deadline_ns / 1000.0
     << ", reopen_interval_ms: " << c.reopen_interval_ns / 1e6
     << ", rcvbuf_bytes: " << c.rcvbuf_bytes
     << ", boot_timeout_ms: " << c.boot_timeout_ns / 1'000'000

@@ -99,7 +99,7 @@ std::uint16_t heartbeat_producer_ms(const CanopenSourceConfig& config) noexcept 
 AssemblerConfig assembler_config(const CanopenSourceConfig& config) noexcept {
   AssemblerConfig a;
   a.joint_count = std::clamp(config.joint_count, 0, kChannelCount);
-  a.sync_role = SyncRole::kProducer;
+  a.sync_role = config.sync;
   a.sync_overflow = config.sync_overflow;
   a.boot_timeout_ns = config.boot_timeout_ns;
   a.tpdo_deadline_ns = config.read_deadline_ns;
@@ -296,13 +296,13 @@ void CanopenSource::make_missing(EncoderSample& out, std::int64_t mono_ns,
   ++counts_.missing_samples;
 }
 
-ReadStatus CanopenSource::read(const CycleTime& time, EncoderSample& out) noexcept {
-  if (time.catch_up) return ReadStatus::kNothingDue;  // one SYNC, one sample
+bool CanopenSource::prepare(const CycleTime& time, EncoderSample& out,
+                            ReadStatus& status) noexcept {
   const std::int64_t start = time.deadline_mono_ns;
-  const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
+  status = time.catch_up ? ReadStatus::kNothingDue : ReadStatus::kNoSample;
   if (!link_.poll_open(*this)) {
-    make_missing(out, start, sample_flag::kBusError);
-    return ReadStatus::kNoSample;
+    if (!time.catch_up) make_missing(out, start, sample_flag::kBusError);
+    return false;
   }
   if (restart_pending_) {
     restart_pending_ = false;
@@ -311,31 +311,53 @@ ReadStatus CanopenSource::read(const CycleTime& time, EncoderSample& out) noexce
     ++detail_.startup_restarts;
   }
   if (!link_.drain(*this)) {
-    make_missing(out, start, sample_flag::kBusError);
-    return ReadStatus::kNoSample;
+    if (!time.catch_up) make_missing(out, start, sample_flag::kBusError);
+    return false;
   }
-  const std::int64_t now = link_.now_mono_ns();
-  startup_.advance(now);
+  startup_.advance(link_.now_mono_ns());
   send_startup_frames();
   if (!cycling_) {
+    while (assembler_.poll(cycle_)) {
+    }  // a SYNC producer's cycles before the nodes ran: nothing to deliver
     if (!startup_.done()) {
-      make_missing(out, start, 0);
-      return ReadStatus::kNoSample;
+      if (!time.catch_up) make_missing(out, start, 0);
+      return false;
     }
     cycling_ = true;
   }
+  return true;
+}
 
-  // The nodes sample when the SYNC arrives: a late wake moves the sample
-  // instant (stamped truthfully, the SYNC's send time) and the answer is
-  // waited for from the SYNC on.
-  const bool late = now - start > period / 10;
-  if (late) ++detail_.late_syncs;
+// The joints whose TPDO a cycle waits for: every node that did not fail.
+void CanopenSource::expect_answers() noexcept {
   expected_ = 0;
   for (int j = 0; j < config_.joint_count; ++j) {
     if (startup_.progress(j).phase != StartupPhase::kFailed) expected_ |= 1U << j;
   }
-  arrived_ = 0;
+  arrived_ = assembler_.answered();
+}
+
+ReadStatus CanopenSource::read(const CycleTime& time, EncoderSample& out) noexcept {
+  const bool producer = config_.sync == SyncRole::kProducer;
+  if (producer && time.catch_up) return ReadStatus::kNothingDue;  // one SYNC, one sample
+  const std::int64_t period = time.period_ns > 0 ? time.period_ns : 1'000'000;
+  ReadStatus status = ReadStatus::kNoSample;
+  if (!prepare(time, out, status)) return status;
+  expect_answers();
+  return producer ? read_producer(time, period, out) : read_consumer(time, period, out);
+}
+
+ReadStatus CanopenSource::read_producer(const CycleTime& time, std::int64_t period,
+                                        EncoderSample& out) noexcept {
+  // The nodes sample when the SYNC arrives: a late wake moves the sample
+  // instant (stamped truthfully, the SYNC's send time) and the answer is
+  // waited for from the SYNC on.
+  const std::int64_t start = time.deadline_mono_ns;
+  const std::int64_t now = link_.now_mono_ns();
+  const bool late = now - start > period / 10;
+  if (late) ++detail_.late_syncs;
   const can::CanFrame sync = assembler_.begin_cycle(now);
+  arrived_ = 0;
   const bool sync_sent = link_.send(sync, *this) == 0;
   if (sync_sent) {
     ++detail_.sync_sent;
@@ -355,6 +377,41 @@ ReadStatus CanopenSource::read(const CycleTime& time, EncoderSample& out) noexce
   }
   convert(cycle_, !sync_sent || !link_.up(), out);
   return out.present ? ReadStatus::kSample : ReadStatus::kNoSample;
+}
+
+// Another device sends SYNC, on its own clock: a cycle opens at each SYNC
+// received and closes once every expected joint answered or its window
+// (read_deadline_us after the SYNC, at most nine tenths of a period) has
+// passed; every closed cycle is delivered once, oldest first.
+ReadStatus CanopenSource::read_consumer(const CycleTime& time, std::int64_t period,
+                                        EncoderSample& out) noexcept {
+  const std::int64_t start = time.deadline_mono_ns;
+  const std::int64_t window = std::min(config_.read_deadline_ns, period - period / 10);
+  if (!time.catch_up && assembler_.cycle_open()) {
+    link_.receive_until(std::min(assembler_.last_sync_ns() + window, poll_deadline(start, period)),
+                        *this);
+  }
+  const std::int64_t now = link_.now_mono_ns();
+  const std::int64_t window_end = assembler_.last_sync_ns() + window;
+  if (assembler_.cycle_open() && ((arrived_ & expected_) == expected_ || now >= window_end)) {
+    assembler_.end_cycle(std::min(now, window_end));
+  }
+  if (assembler_.poll(cycle_)) {
+    convert(cycle_, !link_.up(), out);
+    return out.present ? ReadStatus::kSample : ReadStatus::kNoSample;
+  }
+  if (time.catch_up) return ReadStatus::kNothingDue;
+  // Nothing closed: the producer's clock drifted just past this wake (the
+  // next brings two), unless no SYNC came for one and a half periods.
+  const std::int64_t last = assembler_.last_sync_ns();
+  if (last != 0 && now - last <= period + period / 2) return ReadStatus::kNothingDue;
+  make_missing(out, start, 0);
+  return ReadStatus::kNoSample;
+}
+
+int CanopenSource::backlog() const noexcept {
+  if (config_.sync == SyncRole::kProducer || !link_.up()) return 0;
+  return assembler_.queued() + (link_.socket_may_hold_more() ? 1 : 0);
 }
 
 void to_sample(const CanopenSourceConfig& config, const CycleSample& cycle,

@@ -174,6 +174,10 @@ class Assembler {
   bool poll(CycleSample& out) noexcept;
 
   bool cycle_open() const noexcept { return open_; }
+  // The SYNC instant of the cycle opened last (open or closed since); 0: none yet.
+  std::int64_t last_sync_ns() const noexcept { return current_.sync_mono_ns; }
+  // Closed cycles not polled yet.
+  int queued() const noexcept { return queue_size_; }
   const AssemblerStats& stats() const noexcept { return stats_; }
   const AssemblerConfig& config() const noexcept { return config_; }
   WantedIds wanted_ids() const noexcept;

@@ -3,7 +3,7 @@
 // daemon their CANopen manager (canopen_source.hpp). Its section
 // `source.canopen` (docs/operations.md, "CANopen encoders"):
 //   interface: can0            1-15 characters
-//   sync: producer             the daemon sends SYNC (consumer: not supported yet)
+//   sync: producer             producer: the daemon sends SYNC; consumer: another device does
 //   sync_overflow: 0           0 (SYNC without counter) or 2..240
 //   read_deadline_us: 400      (0, 90000]: wait for the TPDOs after SYNC (at most 9/10 of a period)
 //   reopen_interval_ms: 1000   [10, 60000]

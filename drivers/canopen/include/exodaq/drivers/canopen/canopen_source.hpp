@@ -104,6 +104,9 @@ struct CanopenSourceConfig {
   int rcvbuf_bytes = 1 << 20;
   int joint_count = kChannelCount;
   std::array<CanopenJoint, kChannelCount> joints{};
+  // kProducer: the source sends SYNC every cycle; kConsumer: another device
+  // on the bus does, and each SYNC received opens a cycle.
+  SyncRole sync = SyncRole::kProducer;
   std::uint8_t sync_overflow = 0;  // 0: SYNC without counter; 2..240
   std::int64_t read_deadline_ns = 400'000;
   std::int64_t reopen_interval_ns = 1'000'000'000;
@@ -182,6 +185,10 @@ class CanopenSource final : public EncoderSource, private FrameSink {
   // that is not with its phase or failure).
   void diagnose(SourceDiagnostics& out) const noexcept override;
   void stop() noexcept override;
+  // SYNC consumer: the nodes sample on the producer's clock, and every cycle
+  // is delivered once (the loop catches up on those its late wakes left).
+  bool free_running() const noexcept override { return config_.sync == SyncRole::kConsumer; }
+  int backlog() const noexcept override;
 
   const CanopenSourceConfig& config() const noexcept { return config_; }
   const Startup& startup() const noexcept { return startup_; }
@@ -199,6 +206,12 @@ class CanopenSource final : public EncoderSource, private FrameSink {
   void on_link(bool up) noexcept override;
   bool satisfied() const noexcept override;
 
+  // The link and the start-up, before a cycle: false when read() returns
+  // `status` (out filled for kNoSample) without running one.
+  bool prepare(const CycleTime& time, EncoderSample& out, ReadStatus& status) noexcept;
+  ReadStatus read_producer(const CycleTime& time, std::int64_t period, EncoderSample& out) noexcept;
+  ReadStatus read_consumer(const CycleTime& time, std::int64_t period, EncoderSample& out) noexcept;
+  void expect_answers() noexcept;
   void send_startup_frames() noexcept;
   std::int64_t poll_deadline(std::int64_t from, std::int64_t period) const noexcept;
   void make_missing(EncoderSample& out, std::int64_t mono_ns, std::uint32_t flags) noexcept;
