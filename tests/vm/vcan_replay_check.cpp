@@ -82,6 +82,23 @@ void check(bool ok, const std::string& what) {
   if (!ok) ++g_failures;
 }
 
+// The end of a live-cycles line: homed[6] flags[6] angle[6] (angles in
+// %.17g text, which strtod reads back as the same double).
+template <typename CycleT>
+void read_joints(std::istringstream& s, CycleT& c) {
+  for (auto& h : c.homed) {
+    int x = 0;
+    s >> x;
+    h = x != 0;
+  }
+  for (auto& f : c.flags) s >> f;
+  for (auto& q : c.pos) {
+    std::string t;
+    s >> t;
+    q = std::strtod(t.c_str(), nullptr);
+  }
+}
+
 bool read_live(const std::string& path, std::vector<Cycle>& out, double& rate_hz) {
   std::ifstream in(path);
   if (!in) return false;
@@ -101,18 +118,7 @@ bool read_live(const std::string& path, std::vector<Cycle>& out, double& rate_hz
     s >> c.seq >> c.utime >> present >> c.board_seq >> wall_ns >> c.sample_flags >> source_flags >>
         valid;
     for (auto& v : c.count16) s >> v;
-    for (auto& h : c.homed) {
-      int x = 0;
-      s >> x;
-      h = x != 0;
-    }
-    for (auto& f : c.flags) s >> f;
-    // %.17g text: strtod reads back the same double.
-    for (auto& q : c.pos) {
-      std::string t;
-      s >> t;
-      q = std::strtod(t.c_str(), nullptr);
-    }
+    read_joints(s, c);
     if (!s) {
       std::printf("VCAN-REPLAY: FAIL %s: unreadable line \"%s\"\n", path.c_str(), line.c_str());
       return false;
@@ -212,17 +218,7 @@ bool read_co_live(const std::string& path, std::vector<CoCycle>& out) {
     s >> c.seq >> c.utime >> present >> c.source_seq >> mono_ns >> c.sample_flags >> source_flags >>
         valid >> c.fresh;
     for (auto& v : c.raw) s >> v;
-    for (auto& h : c.homed) {
-      int x = 0;
-      s >> x;
-      h = x != 0;
-    }
-    for (auto& f : c.flags) s >> f;
-    for (auto& q : c.pos) {
-      std::string t;
-      s >> t;
-      q = std::strtod(t.c_str(), nullptr);
-    }
+    read_joints(s, c);
     if (!s) {
       std::printf("VCAN-REPLAY: FAIL %s: unreadable line \"%s\"\n", path.c_str(), line.c_str());
       return false;
