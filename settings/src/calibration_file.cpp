@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <system_error>
@@ -73,6 +74,10 @@ Calibration parse(const YAML::Node& root, const std::string& file) {
     if (prov->has("samples")) {
       const auto n = prov->integer("samples");
       if (n < 0) prov->fail_key("samples", "'samples' must not be negative");
+      if (n > std::numeric_limits<int>::max()) {
+        prov->fail_key("samples", "'samples' must be at most " +
+                                      std::to_string(std::numeric_limits<int>::max()));
+      }
       p.samples = static_cast<int>(n);
     }
     prov->allow("rms_before_mm");

@@ -126,6 +126,8 @@ TEST(CalibrationFile, ErrorMessagesAreExact) {
             "camera, dh_deviations_mm, encoder_offsets_deg, format, marker_offset_mm, provenance)");
   EXPECT_EQ(error_of(kGood + "provenance:\n  rms_after_mm: .inf\n"),
             "cal.yaml:11: 'rms_after_mm' must be a finite number, found '.inf'");
+  EXPECT_EQ(error_of(kGood + "provenance:\n  samples: 15555555200\n"),
+            "cal.yaml:11: 'samples' must be at most 2147483647");
   EXPECT_EQ(error_of(""), "cal.yaml: empty document");
 }
 
