@@ -586,6 +586,17 @@ int main(int argc, char** argv) {
   }
 
   // Replayed cycles no live cycle pairs with, by cause.
+  // From live cycle `it` on: every cycle without a sample and without
+  // SAMPLE_BUS_ERROR until the first with a sample, which holds a board cycle
+  // newer than `board_seq` (the one the live loop never had in time).
+  const auto taken_later = [](auto it, auto end, int board_seq) {
+    if (it == end || (*it)->present) return false;
+    for (; it != end && !(*it)->present; ++it) {
+      if (((*it)->sample_flags & 32U) != 0) return false;
+    }
+    return it != end &&
+           static_cast<std::int8_t>(static_cast<std::uint8_t>((*it)->board_seq - board_seq)) > 0;
+  };
   std::int64_t replay_present = 0, before_live = 0, after_live = 0, in_live_gap = 0, superseded = 0,
                late_delivery = 0, lost_down = 0, other = 0;
   const std::int64_t first_live_us = live.empty() ? 0 : live.front().utime;
@@ -623,15 +634,12 @@ int main(int argc, char** argv) {
                static_cast<std::int8_t>(static_cast<std::uint8_t>((*it)->board_seq - c.board_seq)) >
                    0) {
       ++superseded;
-    } else if (it != live_by_time.end() && it + 1 != live_by_time.end() && !(*it)->present &&
-               ((*it)->sample_flags & 32U) == 0 && (*(it + 1))->present &&
-               (*(it + 1))->seq == (*it)->seq + 1 &&
-               static_cast<std::int8_t>(
-                   static_cast<std::uint8_t>((*(it + 1))->board_seq - c.board_seq)) > 0) {
+    } else if (taken_later(it, live_by_time.end(), c.board_seq)) {
       // Stamped before the live read's deadline, yet the live read found
       // nothing: the kernel stamps a vcan frame when it is queued and delivers
-      // it to the sockets later (under TCG emulation, more than a read window
-      // later). The next live cycle then took the newer board cycle.
+      // it to the sockets later (under TCG emulation, one read window later
+      // or more). The first live cycle with a sample then took a newer board
+      // cycle.
       ++late_delivery;
     } else if (it != live_by_time.end() && !(*it)->present && ((*it)->sample_flags & 32U) != 0) {
       // Completed after the read deadline, and the next live cycle had no
