@@ -325,7 +325,7 @@ int run_canopen(const std::string& exodaq, const std::string& source, const std:
     if (c.source_seq >= 0 && !replay_by_source.contains(c.source_seq))
       replay_by_source[c.source_seq] = &c;
   }
-  constexpr std::uint32_t kHeld = 64;  // joint_state_t::JOINT_HELD
+  constexpr std::uint32_t kHeld = exodaq::joint_state_t::JOINT_HELD;
   const auto half_period_us = static_cast<std::int64_t>(0.5e6 / rate_hz);
   std::int64_t cycles = 0, paired = 0, unpaired = 0, far = 0, raw_differ = 0, pos_differ = 0,
                homed_differ = 0, homed_moved = 0, fresh_differ = 0, fresh_live_only = 0,
@@ -503,8 +503,9 @@ int main(int argc, char** argv) {
     if (replay[i].present) by_board_seq.emplace(replay[i].board_seq, i);
   }
   std::vector<bool> replay_paired(replay.size(), false);
-  constexpr std::uint32_t kPartial = 512;  // joint_state_t::SAMPLE_PARTIAL
-  constexpr std::uint32_t kHeld = 64;      // joint_state_t::JOINT_HELD
+  constexpr std::uint32_t kPartial = exodaq::joint_state_t::SAMPLE_PARTIAL;
+  constexpr std::uint32_t kHeld = exodaq::joint_state_t::JOINT_HELD;
+  constexpr std::uint32_t kBusError = exodaq::joint_state_t::SAMPLE_BUS_ERROR;
   std::int64_t live_present = 0, live_homed = 0, live_homed_present = 0, common = 0, exact = 0,
                exact_homed = 0, partial_live = 0, utime_equal = 0, live_unpaired = 0,
                counts_differ = 0, pos_differ = 0, homed_differ = 0;
@@ -592,7 +593,7 @@ int main(int argc, char** argv) {
   const auto taken_later = [](auto it, auto end, int board_seq) {
     if (it == end || (*it)->present) return false;
     for (; it != end && !(*it)->present; ++it) {
-      if (((*it)->sample_flags & 32U) != 0) return false;
+      if (((*it)->sample_flags & kBusError) != 0) return false;
     }
     return it != end &&
            static_cast<std::int8_t>(static_cast<std::uint8_t>((*it)->board_seq - board_seq)) > 0;
@@ -641,7 +642,8 @@ int main(int argc, char** argv) {
       // or more). The first live cycle with a sample then took a newer board
       // cycle.
       ++late_delivery;
-    } else if (it != live_by_time.end() && !(*it)->present && ((*it)->sample_flags & 32U) != 0) {
+    } else if (it != live_by_time.end() && !(*it)->present &&
+               ((*it)->sample_flags & kBusError) != 0) {
       // Completed after the read deadline, and the next live cycle had no
       // sample and SAMPLE_BUS_ERROR: the interface went down with the frame
       // queued on the daemon's socket (the scenario's ip link set down).
